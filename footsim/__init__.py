@@ -1,0 +1,1 @@
+"""footsim: footstep-planning RL for a small humanoid on four simulators."""
