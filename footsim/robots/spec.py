@@ -1,29 +1,749 @@
 """The robot spec: the single description of a humanoid that every backend's model comes from.
 
-Issue 3 grows this into the full kinematic/inertial description (links, joints, limits,
-collision shapes, walk-ready pose).  The planar task and the 2D backend need only the foot plate
-and the footstep limits, which live here so that every backend reads the same numbers.
+A :class:`RobotSpec` holds a kinematic tree of :class:`Link` s (mass, centre of mass, inertia,
+primitive collision shapes) joined by revolute :class:`Joint` s (origin, axis, limits, effort and
+velocity limits, servo parameters), the foot plate, the walk-ready pose and the footstep limits.
+The model builders (``footsim.robots.mjcf``, ``footsim.robots.urdf``) turn it into MJCF and URDF;
+nothing else keeps a copy of these numbers.
+
+Conventions (shared with ``footsim.walk.ik``):
+
+* Base (trunk) frame x forward, y left, z up, origin at the centre of the bottom of the torso.
+* Every link frame sits on the joint that moves it and is parallel to its parent's frame in the
+  zero pose, so in the zero pose every frame is parallel to the base frame and each joint axis
+  is a base axis.  Zero = straight legs, feet flat, arms hanging down.
+* Leg axes for both legs: HipYaw +z, HipRoll +x, HipPitch +y, Knee +y, AnklePitch +y,
+  AnkleRoll +x.  So a negative HipPitch swings the thigh forward, a positive Knee bends the
+  knee, a positive HipRoll moves the foot towards +y (outward for the left leg, inward for the
+  right one).  Arm axes: ShoulderPitch +y, ShoulderRoll +x, Elbow +y; head: HeadPan +z,
+  HeadTilt +y (positive looks down).
+* Sole frame = centre of the bottom face of the foot plate, straight below the ankle axes.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Union
 
-from footsim.walk.footsteps import StepLimits
+import numpy as np
+
+from footsim.walk.footsteps import Side, StepLimits
+from footsim.walk.ik import LEG_JOINTS, LegGeometry
+
+Vec3 = tuple[float, float, float]
+
+ARM_JOINTS = ("ShoulderPitch", "ShoulderRoll", "Elbow")
+HEAD_JOINTS = ("HeadPan", "HeadTilt")
+
+
+def _vec3(value, what: str) -> Vec3:
+    arr = np.asarray(value, dtype=float)
+    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
+        raise ValueError(f"{what} must be three finite numbers, got {value!r}")
+    return tuple(float(v) for v in arr)
+
+
+def _positive(value: float, what: str) -> float:
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+        raise ValueError(f"{what} must be a positive finite number, got {value!r}")
+    return float(value)
+
+
+def _non_negative(value: float, what: str) -> float:
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+        raise ValueError(f"{what} must be a non-negative finite number, got {value!r}")
+    return float(value)
+
+
+def rpy_to_matrix(rpy: Vec3) -> np.ndarray:
+    """URDF convention: fixed-axis roll about x, then pitch about y, then yaw about z."""
+    r, p, y = rpy
+    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
+    rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
+    ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+    rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+# --------------------------------------------------------------------------------------------
+# Geometry and inertia
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Origin:
+    """A pose relative to a parent frame: translation [m] and URDF roll-pitch-yaw [rad]."""
+
+    xyz: Vec3 = (0.0, 0.0, 0.0)
+    rpy: Vec3 = (0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "xyz", _vec3(self.xyz, "Origin.xyz"))
+        object.__setattr__(self, "rpy", _vec3(self.rpy, "Origin.rpy"))
+
+    @property
+    def rotation(self) -> np.ndarray:
+        return rpy_to_matrix(self.rpy)
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """Homogeneous 4x4 transform."""
+        out = np.eye(4)
+        out[:3, :3] = self.rotation
+        out[:3, 3] = self.xyz
+        return out
+
+
+@dataclass(frozen=True)
+class Box:
+    size: Vec3  # full extents x, y, z [m]
+    origin: Origin = Origin()
+    self_collision: bool = False  # collides with the other leg's self-colliding shapes
+
+    def __post_init__(self) -> None:
+        size = _vec3(self.size, "Box.size")
+        for v in size:
+            _positive(v, "Box.size entries")
+        object.__setattr__(self, "size", size)
+
+
+@dataclass(frozen=True)
+class Sphere:
+    radius: float
+    origin: Origin = Origin()
+    self_collision: bool = False
+
+    def __post_init__(self) -> None:
+        _positive(self.radius, "Sphere.radius")
+
+
+@dataclass(frozen=True)
+class Capsule:
+    """A cylinder of ``length`` along the local z axis with hemispherical caps (total length
+    ``length + 2 radius``)."""
+
+    radius: float
+    length: float
+    origin: Origin = Origin()
+    self_collision: bool = False
+
+    def __post_init__(self) -> None:
+        _positive(self.radius, "Capsule.radius")
+        _positive(self.length, "Capsule.length")
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """A cylinder of ``length`` along the local z axis."""
+
+    radius: float
+    length: float
+    origin: Origin = Origin()
+    self_collision: bool = False
+
+    def __post_init__(self) -> None:
+        _positive(self.radius, "Cylinder.radius")
+        _positive(self.length, "Cylinder.length")
+
+
+Shape = Union[Box, Sphere, Capsule, Cylinder]
+
+
+@dataclass(frozen=True)
+class Inertial:
+    """Mass [kg], centre of mass in the link frame [m] and the inertia tensor about the COM in
+    link-frame axes [kg m²]: ``(ixx, iyy, izz)`` or ``(ixx, iyy, izz, ixy, ixz, iyz)``."""
+
+    mass: float
+    com: Vec3 = (0.0, 0.0, 0.0)
+    inertia: tuple[float, ...] = (1e-6, 1e-6, 1e-6)
+
+    def __post_init__(self) -> None:
+        _positive(self.mass, "Inertial.mass")
+        object.__setattr__(self, "com", _vec3(self.com, "Inertial.com"))
+        values = tuple(float(v) for v in self.inertia)
+        if len(values) == 3:
+            values = values + (0.0, 0.0, 0.0)
+        if len(values) != 6 or not all(math.isfinite(v) for v in values):
+            raise ValueError(f"Inertial.inertia must be 3 or 6 finite numbers, got {self.inertia!r}")
+        object.__setattr__(self, "inertia", values)
+        eig = np.linalg.eigvalsh(self.matrix)
+        # A physical rigid body has positive principal moments obeying the triangle inequality.
+        if eig.min() <= 0 or eig[2] > eig[0] + eig[1] + 1e-12:
+            raise ValueError(f"Inertial.inertia {values} is not a physical inertia tensor")
+
+    @property
+    def matrix(self) -> np.ndarray:
+        ixx, iyy, izz, ixy, ixz, iyz = self.inertia
+        return np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+
+    @property
+    def is_diagonal(self) -> bool:
+        return not any(self.inertia[3:])
+
+
+def box_inertia(mass: float, size: Vec3) -> tuple[float, float, float]:
+    """Principal moments of a solid box of full extents ``size``."""
+    x, y, z = size
+    return (mass * (y * y + z * z) / 12.0, mass * (x * x + z * z) / 12.0, mass * (x * x + y * y) / 12.0)
+
+
+# --------------------------------------------------------------------------------------------
+# Links and joints
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Link:
+    name: str
+    inertial: Inertial
+    shapes: tuple[Shape, ...] = ()
+    rgba: tuple[float, float, float, float] = (0.6, 0.6, 0.65, 1.0)
+
+    def __post_init__(self) -> None:
+        if not self.name:
+            raise ValueError("Link.name must be a non-empty string")
+        object.__setattr__(self, "shapes", tuple(self.shapes))
+        for shape in self.shapes:
+            if not isinstance(shape, (Box, Sphere, Capsule, Cylinder)):
+                raise TypeError(f"link {self.name!r}: unsupported collision shape {shape!r}")
+
+
+@dataclass(frozen=True)
+class ServoParams:
+    """Position servo model: proportional gain kp [Nm/rad] of the position actuator, and the
+    joint's passive damping [Nm s/rad], armature (reflected rotor inertia) [kg m²] and dry
+    friction [Nm]."""
+
+    kp: float
+    damping: float
+    armature: float
+    frictionloss: float
+
+    def __post_init__(self) -> None:
+        _positive(self.kp, "ServoParams.kp")
+        _non_negative(self.damping, "ServoParams.damping")
+        _non_negative(self.armature, "ServoParams.armature")
+        _non_negative(self.frictionloss, "ServoParams.frictionloss")
+
+
+# Reference servo (ROBOTIS OP3 in MuJoCo Menagerie, XM430 servos, force range ±5 Nm).
+OP3_REFERENCE_EFFORT = 5.0
+OP3_REFERENCE_SERVO = ServoParams(kp=21.1, damping=1.084, armature=0.045, frictionloss=0.03)
+
+
+def scaled_servo(effort: float) -> ServoParams:
+    """Servo parameters for a servo of peak torque ``effort`` [Nm], scaled from the OP3 reference.
+
+    Larger Dynamixels (Wolfgang's MX-106/XH540 class legs) have proportionally stiffer position
+    loops, more reflected rotor inertia and more gearbox friction; scaling all four linearly
+    with the torque rating keeps the closed-loop bandwidth (kp / inertia) of the reference model,
+    which is stable under position control at a 2 ms timestep.
+    """
+    ratio = _positive(effort, "effort") / OP3_REFERENCE_EFFORT
+    ref = OP3_REFERENCE_SERVO
+    return ServoParams(
+        kp=ref.kp * ratio,
+        damping=ref.damping * ratio,
+        armature=ref.armature * ratio,
+        frictionloss=ref.frictionloss * ratio,
+    )
+
+
+@dataclass(frozen=True)
+class Joint:
+    """A revolute joint.  ``origin`` places the child link frame in the parent link frame (in the
+    zero pose); ``axis`` is a unit vector in the child (= joint) frame."""
+
+    name: str
+    parent: str
+    child: str
+    axis: Vec3
+    lower: float
+    upper: float
+    effort: float  # peak torque [Nm]
+    velocity: float  # peak speed [rad/s]
+    servo: ServoParams
+    origin: Origin = Origin()
+
+    def __post_init__(self) -> None:
+        if not self.name:
+            raise ValueError("Joint.name must be a non-empty string")
+        axis = np.asarray(_vec3(self.axis, f"joint {self.name!r} axis"))
+        norm = float(np.linalg.norm(axis))
+        if norm < 1e-9:
+            raise ValueError(f"joint {self.name!r}: axis must be non-zero")
+        object.__setattr__(self, "axis", tuple(float(v) for v in axis / norm))
+        for attr in ("lower", "upper"):
+            value = getattr(self, attr)
+            if not (isinstance(value, (int, float)) and math.isfinite(value)):
+                raise ValueError(f"joint {self.name!r}: {attr} must be a finite number, got {value!r}")
+        if not self.lower < self.upper:
+            raise ValueError(f"joint {self.name!r}: lower limit {self.lower} must be below upper {self.upper}")
+        _positive(self.effort, f"joint {self.name!r} effort")
+        _positive(self.velocity, f"joint {self.name!r} velocity")
+
+    @property
+    def range(self) -> tuple[float, float]:
+        return (self.lower, self.upper)
+
+
+def _side(side: Side | str) -> Side:
+    if isinstance(side, Side):
+        return side
+    key = str(side).strip().lower()
+    aliases = {"left": Side.LEFT, "l": Side.LEFT, "right": Side.RIGHT, "r": Side.RIGHT}
+    if key not in aliases:
+        raise ValueError(f"side must be 'left' or 'right' (or Side), got {side!r}")
+    return aliases[key]
+
+
+def side_prefix(side: Side | str) -> str:
+    """Joint-name prefix of a side: ``'L'`` or ``'R'``."""
+    return "L" if _side(side) is Side.LEFT else "R"
+
+
+# --------------------------------------------------------------------------------------------
+# The robot
+# --------------------------------------------------------------------------------------------
 
 
 @dataclass(frozen=True)
 class RobotSpec:
+    """A humanoid: kinematic tree, masses, collision shapes, servo models and walking limits.
+
+    The planar (2D) task needs only ``name``, ``step_limits`` and the foot/torso footprints, so
+    a spec without links is valid; the 3D accessors then raise ``ValueError``.
+    """
+
     name: str
     step_limits: StepLimits = field(default_factory=StepLimits)
     foot_length: float = 0.154  # sole plate, x [m]
     foot_width: float = 0.106  # sole plate, y [m]
     torso_footprint: tuple[float, float] = (0.15, 0.15)  # planar collision box of the trunk [m]
+    foot_thickness: float = 0.0035  # sole plate, z [m]
+    base_link: str = "torso"
+    links: tuple[Link, ...] = ()
+    joints: tuple[Joint, ...] = ()
+    # Sole frame per side: (foot link, sole position in that link's frame); the sole frame is
+    # parallel to the foot link frame.
+    soles: Mapping[str, tuple[str, Vec3]] = field(default_factory=dict)
+    walk_ready: Mapping[str, float] = field(default_factory=dict)  # joint name -> angle [rad]
+
+    def __post_init__(self) -> None:
+        if not self.name:
+            raise ValueError("RobotSpec.name must be a non-empty string")
+        for attr in ("foot_length", "foot_width", "foot_thickness"):
+            _positive(getattr(self, attr), f"RobotSpec.{attr}")
+        object.__setattr__(self, "links", tuple(self.links))
+        object.__setattr__(self, "joints", tuple(self.joints))
+        object.__setattr__(self, "soles", {str(k): (v[0], _vec3(v[1], f"sole {k}")) for k, v in self.soles.items()})
+        object.__setattr__(self, "walk_ready", {str(k): float(v) for k, v in self.walk_ready.items()})
+        if self.links or self.joints:
+            self._validate_tree()
+
+    # ---- validation -------------------------------------------------------------------------
+
+    def _validate_tree(self) -> None:
+        link_names = [link.name for link in self.links]
+        duplicates = sorted({n for n in link_names if link_names.count(n) > 1})
+        if duplicates:
+            raise ValueError(f"robot {self.name!r}: duplicate link names {duplicates}")
+        joint_names = [joint.name for joint in self.joints]
+        duplicates = sorted({n for n in joint_names if joint_names.count(n) > 1})
+        if duplicates:
+            raise ValueError(f"robot {self.name!r}: duplicate joint names {duplicates}")
+        known = set(link_names)
+        if self.base_link not in known:
+            raise ValueError(f"robot {self.name!r}: base link {self.base_link!r} is not among the links")
+        parents: dict[str, str] = {}
+        for joint in self.joints:
+            for role, link in (("parent", joint.parent), ("child", joint.child)):
+                if link not in known:
+                    raise ValueError(f"joint {joint.name!r}: {role} link {link!r} does not exist")
+            if joint.child in parents:
+                raise ValueError(f"link {joint.child!r} is the child of more than one joint")
+            if joint.child == self.base_link:
+                raise ValueError(f"joint {joint.name!r}: the base link {self.base_link!r} cannot be a child")
+            parents[joint.child] = joint.parent
+        orphans = sorted(known - set(parents) - {self.base_link})
+        if orphans:
+            raise ValueError(f"robot {self.name!r}: links {orphans} are not connected to the base")
+        for link in parents:  # every chain must end at the base (no cycles)
+            seen, cur = set(), link
+            while cur != self.base_link:
+                if cur in seen:
+                    raise ValueError(f"robot {self.name!r}: kinematic loop through link {cur!r}")
+                seen.add(cur)
+                cur = parents[cur]
+        for side, (foot, _) in self.soles.items():
+            _side(side)
+            if foot not in known:
+                raise ValueError(f"sole {side!r}: foot link {foot!r} does not exist")
+        by_name = {j.name: j for j in self.joints}
+        for name, angle in self.walk_ready.items():
+            if name not in by_name:
+                raise ValueError(f"walk_ready: unknown joint {name!r}")
+            joint = by_name[name]
+            if not (math.isfinite(angle) and joint.lower <= angle <= joint.upper):
+                raise ValueError(f"walk_ready[{name!r}] = {angle} is outside [{joint.lower}, {joint.upper}]")
+
+    def _require_model(self) -> None:
+        if not self.joints:
+            raise ValueError(f"robot {self.name!r} has no kinematic model (links/joints)")
+
+    # ---- lookup -----------------------------------------------------------------------------
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        return tuple(j.name for j in self.joints)
+
+    @property
+    def link_names(self) -> tuple[str, ...]:
+        return tuple(link.name for link in self.links)
+
+    def joint(self, name: str) -> Joint:
+        for joint in self.joints:
+            if joint.name == name:
+                return joint
+        raise KeyError(f"robot {self.name!r} has no joint {name!r}; joints: {list(self.joint_names)}")
+
+    def link(self, name: str) -> Link:
+        for link in self.links:
+            if link.name == name:
+                return link
+        raise KeyError(f"robot {self.name!r} has no link {name!r}; links: {list(self.link_names)}")
+
+    def parent_joint(self, link_name: str) -> Joint | None:
+        """The joint whose child is ``link_name`` (None for the base)."""
+        for joint in self.joints:
+            if joint.child == link_name:
+                return joint
+        return None
+
+    def child_joints(self, link_name: str) -> tuple[Joint, ...]:
+        return tuple(j for j in self.joints if j.parent == link_name)
+
+    @property
+    def total_mass(self) -> float:
+        return float(sum(link.inertial.mass for link in self.links))
+
+    @property
+    def dof(self) -> int:
+        return len(self.joints)
+
+    def leg_joint_names(self, side: Side | str) -> tuple[str, ...]:
+        """The six leg joints of ``side`` in chain order (hip yaw ... ankle roll)."""
+        self._require_model()
+        names = tuple(side_prefix(side) + j for j in LEG_JOINTS)
+        for name in names:
+            self.joint(name)  # raises naming the missing joint
+        return names
+
+    def sole(self, side: Side | str) -> tuple[str, Vec3]:
+        """(foot link, sole position in the foot link frame)."""
+        key = _side(side).value
+        if key not in self.soles:
+            raise ValueError(f"robot {self.name!r} has no sole frame for the {key} foot")
+        return self.soles[key]
+
+    def foot_link(self, side: Side | str) -> str:
+        return self.sole(side)[0]
+
+    def walk_ready_vector(self) -> np.ndarray:
+        """Walk-ready angles in ``joint_names`` order (unlisted joints at 0)."""
+        return np.array([self.walk_ready.get(name, 0.0) for name in self.joint_names])
+
+    # ---- kinematics -------------------------------------------------------------------------
+
+    def link_transforms(self, q: Mapping[str, float] | None = None) -> dict[str, np.ndarray]:
+        """Pose (4x4) of every link frame in the base frame for joint angles ``q`` (default 0).
+
+        Plain numpy forward kinematics straight from the spec: the reference the model builders'
+        outputs are checked against.
+        """
+        q = dict(q or {})
+        unknown = sorted(set(q) - set(self.joint_names))
+        if unknown:
+            raise ValueError(f"unknown joint(s) {unknown}")
+        out = {self.base_link: np.eye(4)}
+        pending = list(self.child_joints(self.base_link))
+        while pending:
+            joint = pending.pop()
+            angle = float(q.get(joint.name, 0.0))
+            if not math.isfinite(angle):
+                raise ValueError(f"joint {joint.name!r}: angle must be finite, got {angle!r}")
+            motion = np.eye(4)
+            motion[:3, :3] = _axis_angle(np.asarray(joint.axis), angle)
+            out[joint.child] = out[joint.parent] @ joint.origin.matrix @ motion
+            pending.extend(self.child_joints(joint.child))
+        return out
+
+    def sole_transform(self, side: Side | str, q: Mapping[str, float] | None = None) -> np.ndarray:
+        """Pose (4x4) of the sole frame of ``side`` in the base frame."""
+        foot, offset = self.sole(side)
+        sole = np.eye(4)
+        sole[:3, 3] = offset
+        return self.link_transforms(q)[foot] @ sole
+
+    @property
+    def leg_geometry(self) -> LegGeometry:
+        """The leg chain lengths the analytic IK uses, read from the left leg's joints.
+
+        Raises ``ValueError`` if the legs do not have the pure shape the IK assumes (intersecting
+        hip roll/pitch and ankle pitch/roll axes, straight vertical segments, mirrored legs).
+        """
+        self._require_model()
+        dims = {}
+        for side in (Side.LEFT, Side.RIGHT):
+            yaw, roll, pitch, knee, ankle_pitch, ankle_roll = (self.joint(n) for n in self.leg_joint_names(side))
+            expected_axes = ((0, 0, 1), (1, 0, 0), (0, 1, 0), (0, 1, 0), (0, 1, 0), (1, 0, 0))
+            for joint, axis in zip((yaw, roll, pitch, knee, ankle_pitch, ankle_roll), expected_axes):
+                if not np.allclose(joint.axis, axis) or not np.allclose(joint.origin.rpy, 0.0):
+                    raise ValueError(f"joint {joint.name!r} does not follow the leg axis convention")
+            foot, sole = self.sole(side)
+            if foot != ankle_roll.child:
+                raise ValueError(f"the {side.value} sole must be on link {ankle_roll.child!r}, not {foot!r}")
+            segments = (roll.origin.xyz, pitch.origin.xyz, knee.origin.xyz, ankle_pitch.origin.xyz,
+                        ankle_roll.origin.xyz, sole)
+            if any(abs(s[0]) > 1e-9 or abs(s[1]) > 1e-9 for s in segments) or abs(yaw.origin.xyz[0]) > 1e-9 \
+                    or abs(yaw.origin.xyz[2]) > 1e-9:
+                raise ValueError(f"the {side.value} leg chain is not the straight chain LegGeometry describes")
+            if abs(pitch.origin.xyz[2]) > 1e-9 or abs(ankle_roll.origin.xyz[2]) > 1e-9:
+                raise ValueError(f"the {side.value} leg's hip/ankle axes must intersect")
+            dims[side] = (yaw.origin.xyz[1] * side.sign, -roll.origin.xyz[2], -knee.origin.xyz[2],
+                          -ankle_pitch.origin.xyz[2], -sole[2])
+        if not np.allclose(dims[Side.LEFT], dims[Side.RIGHT]):
+            raise ValueError("the legs are not mirror images of each other")
+        hip_y, hip_z, thigh, shin, ankle = dims[Side.LEFT]
+        return LegGeometry(hip_offset_y=hip_y, hip_offset_z=hip_z, thigh=thigh, shin=shin, ankle_to_sole=ankle)
+
+
+def _axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
+    """Rodrigues' rotation about a unit axis."""
+    x, y, z = axis
+    k = np.array([[0, -z, y], [z, 0, -x], [-y, x, 0]])
+    return np.eye(3) + math.sin(angle) * k + (1 - math.cos(angle)) * (k @ k)
+
+
+# --------------------------------------------------------------------------------------------
+# Wolfgang-OP
+# --------------------------------------------------------------------------------------------
+
+# Joint limits of the real robot (left side, its own sign convention), FACTS.md.
+_REAL_LEFT_LEG_LIMITS = {
+    "HipYaw": (-1.5708, 1.5708),
+    "HipRoll": (-1.6, 1.9),
+    "HipPitch": (-0.79, 2.77),
+    "Knee": (-0.2, 2.8),
+    "AnklePitch": (-1.42, 0.37),
+    "AnkleRoll": (-1.58, 1.4),
+}
+# Sign mapping real -> ours, inferred from the real walk-ready pose (HipPitch +16.9° and
+# Knee +63.8° crouch, AnklePitch -31.9° keeps the foot flat; HipRoll and AnkleRoll both +5.8°
+# spread the feet and keep them flat).  In our convention a crouch is HipPitch < 0, Knee > 0,
+# AnklePitch < 0, and a flat, outward-spread left foot is HipRoll > 0, AnkleRoll < 0.  So hip
+# pitch and ankle roll flip sign, the others keep it.  The walking workspace lies well inside
+# these ranges (checked in tests/test_robot_models.py).
+_REAL_TO_OURS_SIGN = {"HipYaw": 1, "HipRoll": 1, "HipPitch": -1, "Knee": 1, "AnklePitch": 1, "AnkleRoll": -1}
+_MIRRORED = ("HipYaw", "HipRoll", "AnkleRoll", "ShoulderRoll", "HeadPan")  # roll/yaw: negate + swap
+
+LEG_EFFORT = {"HipYaw": 10.0, "HipRoll": 10.0, "HipPitch": 10.0, "Knee": 12.9, "AnklePitch": 10.0, "AnkleRoll": 10.0}
+LEG_VELOCITY = {"HipYaw": 5.76, "HipRoll": 5.76, "HipPitch": 5.76, "Knee": 3.87, "AnklePitch": 5.76, "AnkleRoll": 5.76}
+UPPER_BODY_EFFORT, UPPER_BODY_VELOCITY = 7.3, 8.17
+
+# Our choices where FACTS gives no number (left side; right mirrored): arms may swing fully in
+# pitch, abduct up to straight up and adduct a little; the elbow flexes (negative: forearm
+# forward) 90° and over-extends 60° (the real ±1.5708/1.0472 servo range); the head pans ±90°
+# and tilts 0.5 rad up / 1.2 rad down.
+_LEFT_UPPER_BODY_LIMITS = {
+    "ShoulderPitch": (-math.pi, math.pi),
+    "ShoulderRoll": (-0.3, math.pi),
+    "Elbow": (-1.5708, 1.0472),
+    "HeadPan": (-1.5708, 1.5708),
+    "HeadTilt": (-0.5, 1.2),
+}
+
+LEG_DIMENSIONS = LegGeometry()  # 0.055 / 0.0414 / 0.169 / 0.170 / 0.0529 (FACTS.md)
+# The foot plate is 3.5 mm on the real robot (plus 14 mm cleats).  We model a 10 mm plate as a
+# stand-in for plate + cleats: thicker boxes give MuJoCo/Bullet more robust box-plane contacts.
+# The sole (bottom face) stays 0.0529 below the ankle axes either way.
+SIM_FOOT_THICKNESS = 0.010
+FOOT_CLEATS_MASS = 4 * 0.00166  # four 1.66 g cleats per foot, folded into the foot link
+
+
+def _limits(joint: str, side: Side) -> tuple[float, float]:
+    if joint in _REAL_LEFT_LEG_LIMITS:
+        lo, hi = _REAL_LEFT_LEG_LIMITS[joint]
+        sign = _REAL_TO_OURS_SIGN[joint]
+        lo, hi = sorted((sign * lo, sign * hi))
+    else:
+        lo, hi = _LEFT_UPPER_BODY_LIMITS[joint]
+    if side is Side.RIGHT and joint in _MIRRORED:
+        lo, hi = -hi, -lo
+    return lo, hi
+
+
+def stance_pose(legs: LegGeometry, trunk_height: float, foot_distance: float) -> dict[str, float]:
+    """Leg angles for standing with the trunk upright ``trunk_height`` above the soles, the feet
+    flat, ``foot_distance`` apart, straight below the hip yaw axes in x.
+
+    Closed-form two-link solution in the rolled leg plane: the hip roll tilts the leg outward
+    so the sole lands at ±foot_distance/2, the knee bends to shorten the hip-pitch→ankle-pitch
+    distance, hip and ankle pitch keep the ankle under the hip and the foot flat.
+    """
+    lateral = foot_distance / 2.0 - legs.hip_offset_y
+    vertical = trunk_height - legs.hip_offset_z - legs.ankle_to_sole
+    roll = math.atan2(lateral, vertical)
+    reach = math.hypot(lateral, vertical)  # hip-pitch axis to ankle-pitch axis
+    cos_knee = (reach**2 - legs.thigh**2 - legs.shin**2) / (2 * legs.thigh * legs.shin)
+    if not -1.0 <= cos_knee <= 1.0:
+        raise ValueError(f"trunk_height {trunk_height} / foot_distance {foot_distance} is out of the leg's reach")
+    knee = math.acos(cos_knee)
+    hip_pitch = -math.atan2(legs.shin * math.sin(knee), legs.thigh + legs.shin * math.cos(knee))
+    angles = {"HipYaw": 0.0, "HipRoll": roll, "HipPitch": hip_pitch, "Knee": knee,
+              "AnklePitch": -(hip_pitch + knee), "AnkleRoll": -roll}
+    pose = {}
+    for side in (Side.LEFT, Side.RIGHT):
+        for joint, angle in angles.items():
+            mirrored = side is Side.RIGHT and joint in _MIRRORED
+            pose[side_prefix(side) + joint] = (-angle if mirrored else angle) + 0.0  # no -0.0
+    return pose
+
+
+# Walk-ready stance: the walk engine's default trunk height and foot distance (WalkParams).
+# This reproduces the real robot's stance (hip roll ≈ 6.6° vs. 5.8° there, a 64° knee bend).
+WALK_READY_TRUNK_HEIGHT = 0.3948
+WALK_READY_FOOT_DISTANCE = 0.1799
+# Arms hang with the elbows bent 36° forward (FACTS' elbow angle; the real shoulder's 75° is in
+# a frame we do not model, so our arms hang straight down from the shoulder).
+WALK_READY_UPPER_BODY = {"ShoulderPitch": 0.0, "ShoulderRoll": 0.0, "Elbow": -math.radians(36.0),
+                         "HeadPan": 0.0, "HeadTilt": 0.0}
 
 
 def wolfgang() -> RobotSpec:
-    """Wolfgang-OP (Hamburg Bit-Bots), public numbers from ``shared/FACTS.md``."""
-    return RobotSpec(name="wolfgang", step_limits=StepLimits(0.156, 0.103, 0.764))
+    """Wolfgang-OP (Hamburg Bit-Bots), public numbers from ``shared/FACTS.md``.
+
+    Simplifications (documented so the backends know): the real knee's built-in 15° offset and
+    the sole's 0.021 m forward offset from the ankle axis are dropped, so the legs are the pure
+    chain of :class:`LegGeometry`; masses are the URDF's (each foot includes its four cleats,
+    which brings the total to the URDF's 6.117 kg), inertias are those of solid boxes of each
+    link's size except the torso (the public tensor about the COM); collision shapes are boxes
+    and capsules; the foot plate is 10 mm thick (see ``SIM_FOOT_THICKNESS``).
+    """
+    legs = LEG_DIMENSIONS
+    grey, dark, light = (0.55, 0.57, 0.58, 1.0), (0.28, 0.30, 0.32, 1.0), (0.75, 0.75, 0.72, 1.0)
+    links: list[Link] = [
+        Link(
+            "torso",
+            # COM 0.110 m above the base (FACTS); inertia tensor of the public URDF's torso.
+            Inertial(2.084, (0.0, 0.0, 0.110),
+                     (0.0183896, 0.0158772, 0.00780317, -6.80173e-05, -0.00140827, 0.000104074)),
+            (
+                Box((0.12, 0.15, 0.0825), Origin((0.0, 0.0, 0.04125))),  # hip servo bay
+                Box((0.15, 0.125, 0.115), Origin((0.0, 0.0, 0.14))),  # main body (FACTS)
+            ),
+            grey,
+        ),
+        Link("neck", Inertial(0.148, (0.0, 0.0, 0.02), box_inertia(0.148, (0.04, 0.05, 0.04))),
+             (Cylinder(0.02, 0.04, Origin((0.0, 0.0, 0.02))),), dark),
+        Link("head", Inertial(0.301, (0.01, 0.0, 0.055), box_inertia(0.301, (0.09, 0.11, 0.10))),
+             (Sphere(0.055, Origin((0.01, 0.0, 0.06))),), light),
+    ]
+    joints: list[Joint] = [
+        Joint("HeadPan", "torso", "neck", (0, 0, 1), *_limits("HeadPan", Side.LEFT), UPPER_BODY_EFFORT,
+              UPPER_BODY_VELOCITY, scaled_servo(UPPER_BODY_EFFORT), Origin((0.0, 0.0, 0.2))),
+        Joint("HeadTilt", "neck", "head", (0, 1, 0), *_limits("HeadTilt", Side.LEFT), UPPER_BODY_EFFORT,
+              UPPER_BODY_VELOCITY, scaled_servo(UPPER_BODY_EFFORT), Origin((0.0, 0.0, 0.04))),
+    ]
+    for side in (Side.LEFT, Side.RIGHT):
+        s, p, lower = side.sign, side_prefix(side), side.value[0]  # +1/-1, "L"/"R", "l"/"r"
+
+        def joint(name, parent, child, axis, xyz, effort, velocity):
+            return Joint(p + name, parent, child, axis, *_limits(name, side), effort, velocity,
+                         scaled_servo(effort), Origin(xyz))
+
+        # Arms: shoulder at the top corner of the torso, upper arm 0.144 m, forearm to the wrist 0.225 m.
+        links += [
+            Link(f"{lower}_shoulder", Inertial(0.041, (0.0, s * 0.02, 0.0), box_inertia(0.041, (0.03, 0.04, 0.03))),
+                 (Box((0.03, 0.04, 0.03), Origin((0.0, s * 0.02, 0.0))),), dark),
+            Link(f"{lower}_upper_arm", Inertial(0.229, (0.0, 0.0, -0.07), box_inertia(0.229, (0.05, 0.05, 0.144))),
+                 (Capsule(0.025, 0.094, Origin((0.0, 0.0, -0.072))),), grey),
+            Link(f"{lower}_lower_arm", Inertial(0.208, (0.0, 0.0, -0.09), box_inertia(0.208, (0.04, 0.04, 0.2))),
+                 (Capsule(0.02, 0.165, Origin((0.0, 0.0, -0.1225))),), grey),
+        ]
+        effort, velocity = UPPER_BODY_EFFORT, UPPER_BODY_VELOCITY
+        joints += [
+            joint("ShoulderPitch", "torso", f"{lower}_shoulder", (0, 1, 0), (0.0, s * 0.0765, 0.2), effort, velocity),
+            joint("ShoulderRoll", f"{lower}_shoulder", f"{lower}_upper_arm", (1, 0, 0), (0.0, s * 0.042, 0.0),
+                  effort, velocity),
+            joint("Elbow", f"{lower}_upper_arm", f"{lower}_lower_arm", (0, 1, 0), (0.0, 0.0, -0.144), effort, velocity),
+        ]
+        # Legs: the pure LegGeometry chain.  The lower legs and feet collide with the other leg's.
+        plate_z = -legs.ankle_to_sole + SIM_FOOT_THICKNESS / 2.0
+        foot_mass = 0.268 + FOOT_CLEATS_MASS
+        links += [
+            Link(f"{lower}_hip_1", Inertial(0.069, (0.0, 0.0, -0.02), box_inertia(0.069, (0.05, 0.04, 0.04))),
+                 (Box((0.05, 0.04, 0.03), Origin((0.0, 0.0, -0.015))),), dark),
+            Link(f"{lower}_hip_2", Inertial(0.320, (0.0, 0.0, -0.01), box_inertia(0.320, (0.06, 0.05, 0.07))),
+                 (Box((0.06, 0.05, 0.07), Origin((0.0, 0.0, -0.005))),), dark),
+            Link(f"{lower}_upper_leg", Inertial(0.242, (0.0, 0.0, -0.11), box_inertia(0.242, (0.05, 0.05, legs.thigh))),
+                 (Capsule(0.025, 0.10, Origin((0.0, 0.0, -legs.thigh / 2))),), grey),
+            Link(f"{lower}_lower_leg", Inertial(0.088, (0.0, 0.0, -0.06), box_inertia(0.088, (0.04, 0.04, legs.shin))),
+                 (Capsule(0.022, 0.10, Origin((0.0, 0.0, -legs.shin / 2)), self_collision=True),), grey),
+            Link(f"{lower}_ankle", Inertial(0.320, (0.0, 0.0, 0.0), box_inertia(0.320, (0.06, 0.05, 0.07))),
+                 (Box((0.06, 0.05, 0.06), Origin((0.0, 0.0, 0.005)), self_collision=True),), dark),
+            Link(f"{lower}_foot", Inertial(foot_mass, (0.0, 0.0, -0.035),
+                                           box_inertia(foot_mass, (0.154, 0.106, 0.03))),
+                 (Box((0.154, 0.106, SIM_FOOT_THICKNESS), Origin((0.0, 0.0, plate_z)), self_collision=True),), light),
+        ]
+        le, lv = LEG_EFFORT, LEG_VELOCITY
+        joints += [
+            joint("HipYaw", "torso", f"{lower}_hip_1", (0, 0, 1), (0.0, s * legs.hip_offset_y, 0.0),
+                  le["HipYaw"], lv["HipYaw"]),
+            joint("HipRoll", f"{lower}_hip_1", f"{lower}_hip_2", (1, 0, 0), (0.0, 0.0, -legs.hip_offset_z),
+                  le["HipRoll"], lv["HipRoll"]),
+            joint("HipPitch", f"{lower}_hip_2", f"{lower}_upper_leg", (0, 1, 0), (0.0, 0.0, 0.0),
+                  le["HipPitch"], lv["HipPitch"]),
+            joint("Knee", f"{lower}_upper_leg", f"{lower}_lower_leg", (0, 1, 0), (0.0, 0.0, -legs.thigh),
+                  le["Knee"], lv["Knee"]),
+            joint("AnklePitch", f"{lower}_lower_leg", f"{lower}_ankle", (0, 1, 0), (0.0, 0.0, -legs.shin),
+                  le["AnklePitch"], lv["AnklePitch"]),
+            joint("AnkleRoll", f"{lower}_ankle", f"{lower}_foot", (1, 0, 0), (0.0, 0.0, 0.0),
+                  le["AnkleRoll"], lv["AnkleRoll"]),
+        ]
+
+    walk_ready = stance_pose(legs, WALK_READY_TRUNK_HEIGHT, WALK_READY_FOOT_DISTANCE)
+    for side in (Side.LEFT, Side.RIGHT):
+        for joint_name, angle in WALK_READY_UPPER_BODY.items():
+            if joint_name.startswith("Head"):
+                walk_ready[joint_name] = angle
+            else:
+                mirrored = side is Side.RIGHT and joint_name in _MIRRORED
+                walk_ready[side_prefix(side) + joint_name] = -angle if mirrored else angle
+
+    # Order joints as the real robot lists them: legs, arms, head.
+    order = [side_prefix(sd) + j for sd in (Side.LEFT, Side.RIGHT) for j in LEG_JOINTS]
+    order += [side_prefix(sd) + j for sd in (Side.LEFT, Side.RIGHT) for j in ARM_JOINTS]
+    order += list(HEAD_JOINTS)
+    joints.sort(key=lambda j: order.index(j.name))
+
+    return RobotSpec(
+        name="wolfgang",
+        step_limits=StepLimits(0.156, 0.103, 0.764),
+        foot_length=0.154,
+        foot_width=0.106,
+        foot_thickness=SIM_FOOT_THICKNESS,
+        torso_footprint=(0.15, 0.15),
+        base_link="torso",
+        links=tuple(links),
+        joints=tuple(joints),
+        soles={"left": ("l_foot", (0.0, 0.0, -legs.ankle_to_sole)),
+               "right": ("r_foot", (0.0, 0.0, -legs.ankle_to_sole))},
+        walk_ready=walk_ready,
+    )
 
 
 ROBOTS = {"wolfgang": wolfgang}
@@ -32,5 +752,28 @@ ROBOTS = {"wolfgang": wolfgang}
 def get_robot(name: str) -> RobotSpec:
     try:
         return ROBOTS[name]()
-    except KeyError:
+    except (KeyError, TypeError):
         raise ValueError(f"unknown robot {name!r}; valid robots: {sorted(ROBOTS)}") from None
+
+
+CONFIG_KEYS = ("name",)
+
+
+def robot_from_config(cfg: Mapping | str) -> RobotSpec:
+    """The spec named by a Hydra ``robot`` group entry (``{name: wolfgang}``) or a bare name.
+
+    Any key other than ``name`` is rejected: the robot's numbers live in code, in one place.
+    """
+    if isinstance(cfg, str):
+        return get_robot(cfg)
+    if not isinstance(cfg, Mapping):
+        try:  # an omegaconf DictConfig
+            cfg = dict(cfg)
+        except (TypeError, ValueError):
+            raise TypeError(f"robot config must be a mapping or a name, got {type(cfg).__name__}") from None
+    unknown = sorted(set(map(str, cfg)) - set(CONFIG_KEYS))
+    if unknown:
+        raise ValueError(f"unknown robot config key(s) {unknown}; valid keys: {list(CONFIG_KEYS)}")
+    if "name" not in cfg:
+        raise ValueError("robot config needs a 'name' (valid robots: %s)" % sorted(ROBOTS))
+    return get_robot(cfg["name"])
