@@ -305,6 +305,12 @@ def side_prefix(side: Side | str) -> str:
     return "L" if _side(side) is Side.LEFT else "R"
 
 
+def sole_frame_name(side: Side | str) -> str:
+    """Name of the sole frame of ``side`` in every generated model: ``'l_sole'`` / ``'r_sole'``
+    (a MuJoCo site, a massless URDF link on a fixed joint)."""
+    return "l_sole" if _side(side) is Side.LEFT else "r_sole"
+
+
 # --------------------------------------------------------------------------------------------
 # The robot
 # --------------------------------------------------------------------------------------------
