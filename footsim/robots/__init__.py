@@ -1,5 +1,9 @@
-"""Robot descriptions: one spec per robot, from which every simulator's model is generated."""
+"""Robot descriptions: one spec per robot, from which every simulator's model is generated.
 
-from footsim.robots.spec import RobotSpec, get_robot, ROBOTS
+``footsim.robots.mjcf`` (needs mujoco) and ``footsim.robots.urdf`` build the models; they are
+not imported here so that ``import footsim.robots`` stays light.
+"""
 
-__all__ = ["RobotSpec", "get_robot", "ROBOTS"]
+from footsim.robots.spec import ROBOTS, Joint, Link, RobotSpec, get_robot, robot_from_config, wolfgang
+
+__all__ = ["RobotSpec", "Link", "Joint", "get_robot", "robot_from_config", "wolfgang", "ROBOTS"]
