@@ -87,10 +87,11 @@ class DoubleStep:
         a = np.asarray(action, dtype=float).reshape(-1)
         if a.shape != (6,):
             raise ValueError(f"a double-step action has 6 values, got shape {np.shape(action)}")
-        if not np.all(np.isfinite(a)):
+        if not np.isfinite(a).all():
             raise ValueError(f"action contains NaN or inf: {a.tolist()}")
-        a = np.clip(a, -1.0, 1.0) * np.tile(limits.as_array(), 2)
-        return cls(Footstep(*map(float, a[:3])), Footstep(*map(float, a[3:])))
+        v = [min(max(x, -1.0), 1.0) for x in a.tolist()]
+        lx, ly, lt = limits.x, limits.y, limits.theta
+        return cls(Footstep(v[0] * lx, v[1] * ly, v[2] * lt), Footstep(v[3] * lx, v[4] * ly, v[5] * lt))
 
     @classmethod
     def from_array(cls, values) -> "DoubleStep":
@@ -178,8 +179,9 @@ class FootstepGeometry:
         """Does a foot at (x, y, theta) relative to the other foot overlap it (with the gap)?"""
         hl = 0.5 * self.foot_length + 0.5 * self.min_foot_gap
         hw = 0.5 * self.foot_width + 0.5 * self.min_foot_gap
-        # Cheap exits: far apart laterally is the common case.
-        if abs(y) >= 2.0 * math.hypot(hl, hw):
+        # Cheap exit on the support foot's lateral axis (the separating axis in the common case):
+        # the flying rectangle's half-extent along y is hl|sin θ| + hw|cos θ|.
+        if abs(y) - (hl * abs(math.sin(theta)) + hw * abs(math.cos(theta))) > hw:
             return False
         return _rects_overlap(_rect_corners(0.0, 0.0, 0.0, hl, hw), _rect_corners(x, y, theta, hl, hw))
 

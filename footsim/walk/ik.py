@@ -1,4 +1,4 @@
-"""Analytic leg inverse / forward kinematics (issue 3 fills in IK and FK).
+"""Analytic leg inverse / forward kinematics.
 
 Shared kinematic convention (the robot model builders follow the same one):
 base (trunk) frame x forward, y left, z up, origin at the centre of the bottom of the torso.
@@ -13,6 +13,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 LEG_JOINTS = ("HipYaw", "HipRoll", "HipPitch", "Knee", "AnklePitch", "AnkleRoll")
 
 
@@ -25,3 +27,180 @@ class LegGeometry:
     thigh: float = 0.169  # HipPitch → Knee
     shin: float = 0.170  # Knee → AnklePitch
     ankle_to_sole: float = 0.0529  # AnkleRoll → sole frame
+
+    @property
+    def straight_leg_length(self) -> float:
+        """Base origin → sole, straight leg (vertical)."""
+        return self.hip_offset_z + self.thigh + self.shin + self.ankle_to_sole
+
+    def side_sign(self, side) -> float:
+        """+1 for the left leg (base +y), -1 for the right; accepts a Side or 'left'/'right'."""
+        value = getattr(side, "value", side)
+        if value == "left":
+            return 1.0
+        if value == "right":
+            return -1.0
+        raise ValueError(f"side must be 'left' or 'right', got {side!r}")
+
+
+# The 12 leg joints in the order of every joint-target array the walk engine produces.
+LEG_JOINT_NAMES = tuple("L" + j for j in LEG_JOINTS) + tuple("R" + j for j in LEG_JOINTS)
+
+# A joint counts as clipped (and the pose unreachable) when it moved more than this.
+_LIMIT_TOLERANCE = 1e-9
+
+
+# --- rotations (batched over a leading axis) -------------------------------------------------
+
+
+def rotation_from_rpy(rpy) -> np.ndarray:
+    """``R = Rz(yaw) Ry(pitch) Rx(roll)`` for ``rpy (..., 3)``; returns ``(..., 3, 3)``."""
+    rpy = np.asarray(rpy, dtype=float)
+    cr, sr = np.cos(rpy[..., 0]), np.sin(rpy[..., 0])
+    cp, sp = np.cos(rpy[..., 1]), np.sin(rpy[..., 1])
+    cy, sy = np.cos(rpy[..., 2]), np.sin(rpy[..., 2])
+    R = np.empty(rpy.shape[:-1] + (3, 3))
+    R[..., 0, 0] = cy * cp
+    R[..., 0, 1] = cy * sp * sr - sy * cr
+    R[..., 0, 2] = cy * sp * cr + sy * sr
+    R[..., 1, 0] = sy * cp
+    R[..., 1, 1] = sy * sp * sr + cy * cr
+    R[..., 1, 2] = sy * sp * cr - cy * sr
+    R[..., 2, 0] = -sp
+    R[..., 2, 1] = cp * sr
+    R[..., 2, 2] = cp * cr
+    return R
+
+
+def rpy_from_rotation(R) -> np.ndarray:
+    """Inverse of :func:`rotation_from_rpy` (pitch in [-pi/2, pi/2])."""
+    R = np.asarray(R, dtype=float)
+    roll = np.arctan2(R[..., 2, 1], R[..., 2, 2])
+    pitch = np.arcsin(np.clip(-R[..., 2, 0], -1.0, 1.0))
+    yaw = np.arctan2(R[..., 1, 0], R[..., 0, 0])
+    return np.stack([roll, pitch, yaw], axis=-1)
+
+
+def _rot_x(a: np.ndarray) -> np.ndarray:
+    c, s = np.cos(a), np.sin(a)
+    R = np.zeros(a.shape + (3, 3))
+    R[..., 0, 0] = 1.0
+    R[..., 1, 1], R[..., 1, 2], R[..., 2, 1], R[..., 2, 2] = c, -s, s, c
+    return R
+
+
+def _rot_y(a: np.ndarray) -> np.ndarray:
+    c, s = np.cos(a), np.sin(a)
+    R = np.zeros(a.shape + (3, 3))
+    R[..., 1, 1] = 1.0
+    R[..., 0, 0], R[..., 0, 2], R[..., 2, 0], R[..., 2, 2] = c, s, -s, c
+    return R
+
+
+def _rot_z(a: np.ndarray) -> np.ndarray:
+    c, s = np.cos(a), np.sin(a)
+    R = np.zeros(a.shape + (3, 3))
+    R[..., 2, 2] = 1.0
+    R[..., 0, 0], R[..., 0, 1], R[..., 1, 0], R[..., 1, 1] = c, -s, s, c
+    return R
+
+
+# --- forward kinematics ----------------------------------------------------------------------
+
+
+def leg_fk(q, side, leg: LegGeometry = LegGeometry()) -> tuple[np.ndarray, np.ndarray]:
+    """Sole pose in the base frame for joint angles ``q (n, 6)`` (order :data:`LEG_JOINTS`).
+
+    Returns ``(position (n, 3), rotation (n, 3, 3))``; use :func:`rpy_from_rotation` for angles.
+    Written as a plain product of the chain's transforms, independent of the IK's algebra.
+    """
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    if q.shape[-1] != 6:
+        raise ValueError(f"leg joint arrays have 6 columns, got shape {q.shape}")
+    sign = leg.side_sign(side)
+    n = q.shape[0]
+    down = lambda length: np.broadcast_to(np.array([0.0, 0.0, -length]), (n, 3))  # noqa: E731
+    R = _rot_z(q[:, 0])
+    pos = np.broadcast_to(np.array([0.0, sign * leg.hip_offset_y, 0.0]), (n, 3)) + np.einsum("nij,nj->ni", R, down(leg.hip_offset_z))
+    R = R @ _rot_x(q[:, 1]) @ _rot_y(q[:, 2])
+    pos = pos + np.einsum("nij,nj->ni", R, down(leg.thigh))
+    R = R @ _rot_y(q[:, 3])
+    pos = pos + np.einsum("nij,nj->ni", R, down(leg.shin))
+    R = R @ _rot_y(q[:, 4]) @ _rot_x(q[:, 5])
+    pos = pos + np.einsum("nij,nj->ni", R, down(leg.ankle_to_sole))
+    return pos, R
+
+
+# --- inverse kinematics ----------------------------------------------------------------------
+
+
+def leg_ik_rotation(foot_pos, foot_rot, side_sign, leg: LegGeometry = LegGeometry(), limits=None):
+    """:func:`leg_ik` with the target orientation as rotation matrices ``(n, 3, 3)``.
+
+    ``side_sign`` is +1 (left) / -1 (right), a scalar or one per row, so both legs can be
+    solved in one batch.
+    """
+    p = np.atleast_2d(np.asarray(foot_pos, dtype=float))
+    R = np.asarray(foot_rot, dtype=float).reshape(-1, 3, 3)
+    if p.shape[-1] != 3 or R.shape[0] != p.shape[0]:
+        raise ValueError(f"foot_pos must be (n, 3) and foot_rot (n, 3, 3); got {p.shape} and {R.shape}")
+    if not (np.all(np.isfinite(p)) and np.all(np.isfinite(R))):
+        raise ValueError("leg IK target contains NaN or inf")
+    sign = np.broadcast_to(np.asarray(side_sign, dtype=float), (p.shape[0],))
+    L1, L2 = leg.thigh, leg.shin
+    # Ankle (pitch/roll intersection) sits ankle_to_sole above the sole along the foot's z axis.
+    # Hip = HipRoll/HipPitch intersection, independent of the hip yaw.
+    d = -p - leg.ankle_to_sole * R[:, :, 2]  # hip - ankle, before adding the hip offset
+    d[:, 1] += sign * leg.hip_offset_y
+    d[:, 2] -= leg.hip_offset_z
+    # Hip as seen from the ankle, in the foot frame (R^T d): only the knee, ankle pitch and
+    # ankle roll lie between them, which decouples the problem.
+    vx = R[:, 0, 0] * d[:, 0] + R[:, 1, 0] * d[:, 1] + R[:, 2, 0] * d[:, 2]
+    vy = R[:, 0, 1] * d[:, 0] + R[:, 1, 1] * d[:, 1] + R[:, 2, 1] * d[:, 2]
+    vz = R[:, 0, 2] * d[:, 0] + R[:, 1, 2] * d[:, 1] + R[:, 2, 2] * d[:, 2]
+    ankle_roll = np.arctan2(vy, vz)
+    cos_knee = (vx * vx + vy * vy + vz * vz - L1 * L1 - L2 * L2) / (2.0 * L1 * L2)
+    reachable = np.abs(cos_knee) <= 1.0
+    knee = np.arccos(np.clip(cos_knee, -1.0, 1.0))
+    # In the plane of the leg (after undoing the ankle roll) the hip is at w = (v_x, 0, |v_yz|);
+    # with the knee bent the same point is at u = (-L1 sin k, 0, L1 cos k + L2) before the
+    # ankle pitch rotates it, so the ankle pitch is the angle between u and w (about +y).
+    ankle_pitch = np.arctan2(-L1 * np.sin(knee), L1 * np.cos(knee) + L2) - np.arctan2(vx, np.hypot(vy, vz))
+    # Remaining hip rotation M = Rz(yaw) Rx(roll) Ry(pitch) = R Rx(-ankle_roll) Ry(-b), b = knee +
+    # ankle pitch; only the entries the ZXY decomposition needs are formed.
+    cr, sr = np.cos(ankle_roll), np.sin(ankle_roll)
+    b = knee + ankle_pitch
+    cb, sb = np.cos(b), np.sin(b)
+    m01 = R[:, 0, 1] * cr - R[:, 0, 2] * sr
+    m11 = R[:, 1, 1] * cr - R[:, 1, 2] * sr
+    m21 = R[:, 2, 1] * cr - R[:, 2, 2] * sr
+    r2x_sb = R[:, 2, 1] * sr + R[:, 2, 2] * cr
+    m20 = R[:, 2, 0] * cb + r2x_sb * sb
+    m22 = -R[:, 2, 0] * sb + r2x_sb * cb
+    hip_roll = np.arcsin(np.clip(m21, -1.0, 1.0))
+    hip_yaw = np.arctan2(-m01, m11)
+    hip_pitch = np.arctan2(-m20, m22)
+    q = np.stack([hip_yaw, hip_roll, hip_pitch, knee, ankle_pitch, ankle_roll], axis=1)
+    if limits is not None:
+        lim = np.asarray(limits, dtype=float)
+        if lim.ndim == 2:
+            lim = np.broadcast_to(lim, (p.shape[0],) + lim.shape)
+        clipped = np.clip(q, lim[..., 0], lim[..., 1])
+        reachable &= np.all(np.abs(clipped - q) <= _LIMIT_TOLERANCE, axis=1)
+        q = clipped
+    return q, reachable
+
+
+def leg_ik(foot_pos, foot_rpy, side, leg: LegGeometry = LegGeometry(), limits=None):
+    """Joint angles that put the sole at ``foot_pos (n, 3)`` with orientation ``foot_rpy (n, 3)``.
+
+    The target is the sole frame relative to the base (trunk) frame; rpy is ``Rz Ry Rx``.
+    ``limits`` is ``(6, 2)`` [lower, upper] in :data:`LEG_JOINTS` order (this leg's, in the
+    shared convention).  Returns ``(q (n, 6), reachable (n,) bool)``.  Out-of-reach targets get
+    the nearest straight/folded knee and are flagged; joints beyond their limits are clipped
+    and flagged; the result never contains NaN.
+    """
+    rpy = np.atleast_2d(np.asarray(foot_rpy, dtype=float))
+    if not np.all(np.isfinite(rpy)):
+        raise ValueError("leg IK target contains NaN or inf")
+    return leg_ik_rotation(foot_pos, rotation_from_rpy(rpy), leg.side_sign(side), leg, limits)

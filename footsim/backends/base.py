@@ -1,0 +1,100 @@
+"""The backend interface: execute one double step, report the truth.
+
+A backend knows physics (or planar geometry) and nothing about rewards or observations.
+"""
+
+from __future__ import annotations
+
+import importlib
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from footsim.geometry import Pose2D
+from footsim.tasks.scenes import Scene
+from footsim.walk.footsteps import DoubleStep, FeetState
+
+
+@dataclass
+class StepResult:
+    """What happened while one double step was executed."""
+
+    pose: Pose2D  # ground-truth navigation pose after the step
+    duration_s: float  # simulated seconds the step took
+    feet: FeetState | None = None  # planar foot poses after the step
+    executed: DoubleStep | None = None  # the double step actually executed (after clipping/interference)
+    fell: bool = False
+    collided: bool = False
+    sim_error: str | None = None  # why the simulation became invalid, if it did
+    info: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class RenderOverlay:
+    """Task information a backend may draw on top of its scene (it does not know the task)."""
+
+    goal: Pose2D
+    ray_endpoints: np.ndarray | None = None  # (n, 2) world coordinates, from the believed pose
+    believed: Pose2D | None = None
+    reached: bool = False
+
+
+class Backend(ABC):
+    name: str = "base"
+    #: Names of randomization terms / sensors this backend supports.  Asking for anything else
+    #: is an error (never a silent no-op).
+    capabilities: frozenset[str] = frozenset()
+    #: Whether touching an obstacle ends the episode (2D: yes, per the thesis; 3D: configurable).
+    collision_ends_episode: bool = True
+
+    @abstractmethod
+    def reset(self, scene: Scene, rng: np.random.Generator) -> Pose2D:
+        """Place the robot at the origin in ``scene``; return the navigation pose."""
+
+    @abstractmethod
+    def execute(self, double_step: DoubleStep) -> StepResult:
+        """Execute one double step."""
+
+    def render(self, overlay: RenderOverlay | None = None) -> np.ndarray | None:
+        return None
+
+    def close(self) -> None:
+        pass
+
+
+@dataclass(frozen=True)
+class BackendEntry:
+    target: str  # "module:Class"
+    extra: str | None  # pip extra that installs the simulator
+
+
+BACKENDS: dict[str, BackendEntry] = {
+    "pymunk": BackendEntry("footsim.backends.pymunk2d:Pymunk2DBackend", None),
+    "mujoco": BackendEntry("footsim.backends.mujoco_backend:MujocoBackend", "mujoco"),
+    "dm_control": BackendEntry("footsim.backends.dm_control_backend:DmControlBackend", "dm_control"),
+    "pybullet": BackendEntry("footsim.backends.pybullet_backend:PybulletBackend", "pybullet"),
+}
+
+_SIMULATOR_MODULES = {"mujoco": "mujoco", "dm_control": "dm_control", "pybullet": "pybullet"}
+
+
+def backend_class(name: str) -> type[Backend]:
+    """Resolve a backend name, with clear errors for unknown names and missing simulators."""
+    try:
+        entry = BACKENDS[name]
+    except KeyError:
+        raise ValueError(f"unknown backend {name!r}; valid backends: {', '.join(BACKENDS)}") from None
+    module_name, cls_name = entry.target.split(":")
+    try:
+        module = importlib.import_module(module_name)
+    except ModuleNotFoundError as err:
+        simulator = _SIMULATOR_MODULES.get(name)
+        if simulator and err.name and err.name.split(".")[0] == simulator:
+            raise ImportError(
+                f"backend {name!r} needs the {simulator} package: pip install 'footsim[{entry.extra}]'"
+            ) from err
+        if err.name == module_name:
+            raise NotImplementedError(f"backend {name!r} is not available in this version of footsim") from err
+        raise
+    return getattr(module, cls_name)

@@ -1,0 +1,121 @@
+"""The 2D geometric backend (thesis 5.1.1), with pymunk for collisions.
+
+Feet land exactly where the planar footstep geometry puts them (including foot–foot
+interference); the feet and the trunk's footprint are pymunk polygons, obstacles static circles,
+and a collision is any overlap found by pymunk shape queries — at both put-downs and at each
+flying foot's mid-swing pose.  The navigation pose is the mean of the two feet.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pymunk
+
+from footsim.backends.base import Backend, RenderOverlay, StepResult
+from footsim.geometry import Pose2D, mean_pose
+from footsim.robots.spec import RobotSpec
+from footsim.tasks.scenes import Scene
+from footsim.walk.footsteps import DoubleStep, FeetState, FootstepGeometry, Side
+from footsim.walk.params import WalkParams
+
+
+def _box(body: pymunk.Body, length: float, width: float) -> pymunk.Poly:
+    hl, hw = 0.5 * length, 0.5 * width
+    return pymunk.Poly(body, [(-hl, -hw), (hl, -hw), (hl, hw), (-hl, hw)])
+
+
+class Pymunk2DBackend(Backend):
+    name = "pymunk"
+    capabilities = frozenset()
+    collision_ends_episode = True
+
+    def __init__(self, robot: RobotSpec, walk: WalkParams, collision_ends_episode: bool = True, **unused):
+        if unused:
+            raise ValueError(f"backend pymunk: unknown option(s) {sorted(unused)}")
+        self.robot = robot
+        self.walk = walk
+        self.collision_ends_episode = bool(collision_ends_episode)
+        self.geometry = FootstepGeometry(
+            robot.step_limits, robot.foot_length, robot.foot_width, walk.foot_distance
+        )
+        # Circumradii for the broad phase: a shape farther than this from every obstacle can't touch one.
+        self._foot_radius = math.hypot(0.5 * robot.foot_length, 0.5 * robot.foot_width)
+        self._trunk_radius = math.hypot(*(0.5 * v for v in robot.torso_footprint))
+        self.space: pymunk.Space | None = None
+        self.feet: FeetState | None = None
+        self.history: list[tuple[Side, Pose2D]] = []
+        self.nav_history: list[Pose2D] = []
+        self.scene: Scene | None = None
+
+    # -- episode --------------------------------------------------------------------------
+    def reset(self, scene: Scene, rng: np.random.Generator) -> Pose2D:
+        self.scene = scene
+        self.space = pymunk.Space()
+        for obstacle in scene.all_obstacles:
+            self.space.add(pymunk.Circle(self.space.static_body, obstacle.r, (obstacle.x, obstacle.y)))
+        self._probe_body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+        self._foot_shape = _box(self._probe_body, self.robot.foot_length, self.robot.foot_width)
+        self._trunk_body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+        self._trunk_shape = _box(self._trunk_body, *self.robot.torso_footprint)
+        robot_only = pymunk.ShapeFilter(group=1)  # the robot's own shapes never collide with each other
+        self._foot_shape.filter = robot_only
+        self._trunk_shape.filter = robot_only
+        self.space.add(self._probe_body, self._foot_shape, self._trunk_body, self._trunk_shape)
+        self._obstacles = [(o.x, o.y, o.r) for o in scene.all_obstacles]
+        self.feet = self.geometry.initial_feet()
+        self.history = [(Side.LEFT, self.feet.left), (Side.RIGHT, self.feet.right)]
+        self.nav_history = [self.feet.nav_pose]
+        return self.feet.nav_pose
+
+    def execute(self, double_step: DoubleStep) -> StepResult:
+        if self.feet is None:
+            raise RuntimeError("backend pymunk: execute() before reset()")
+        before = self.feet
+        after_first, after_second, executed, n_interfered = self.geometry.execute(before, double_step)
+        collided = False
+        if self.scene.all_obstacles:
+            collided = (
+                self._swing_collides(before, after_first, Side.RIGHT)
+                or self._swing_collides(after_first, after_second, Side.LEFT)
+            )
+        self.feet = after_second
+        self.history += [(Side.RIGHT, after_first.right), (Side.LEFT, after_second.left)]
+        self.nav_history.append(after_second.nav_pose)
+        return StepResult(
+            pose=after_second.nav_pose,
+            duration_s=self.walk.double_step_duration,
+            feet=after_second,
+            executed=executed,
+            collided=collided,
+            info={"foot_interference": n_interfered},
+        )
+
+    # -- collisions -----------------------------------------------------------------------
+    def _swing_collides(self, start: FeetState, end: FeetState, flying: Side) -> bool:
+        """Flying foot at mid-swing and at put-down, and the trunk at put-down."""
+        mid = mean_pose(start.foot(flying), end.foot(flying))
+        return (
+            self._hits(self._probe_body, self._foot_shape, self._foot_radius, mid)
+            or self._hits(self._probe_body, self._foot_shape, self._foot_radius, end.foot(flying))
+            or self._hits(self._trunk_body, self._trunk_shape, self._trunk_radius, end.nav_pose)
+        )
+
+    def _hits(self, body: pymunk.Body, shape: pymunk.Shape, radius: float, pose: Pose2D) -> bool:
+        px, py = pose.x, pose.y
+        if all((ox - px) ** 2 + (oy - py) ** 2 > (r + radius) ** 2 for ox, oy, r in self._obstacles):
+            return False  # broad phase: no obstacle within the shape's circumradius
+        body.position = (px, py)
+        body.angle = pose.theta
+        self.space.reindex_shapes_for_body(body)
+        return any(hit.shape.body is self.space.static_body for hit in self.space.shape_query(shape))
+
+    # -- rendering ------------------------------------------------------------------------
+    def render(self, overlay: RenderOverlay | None = None) -> np.ndarray:
+        from footsim.render2d import draw_scene
+
+        return draw_scene(self.scene, self.history, self.nav_history, self.robot, overlay)
+
+    def close(self) -> None:
+        self.space = None

@@ -1,0 +1,138 @@
+"""Finding and reading the Hydra config groups, and turning them into footsim objects.
+
+``conf/`` sits at the repository top; a built wheel carries it as ``footsim/conf``.  The env
+(``gymnasium.make``) reads single presets from it with OmegaConf — no Hydra global state — so
+the same preset names work inside and outside a Hydra app.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any, Mapping
+
+from omegaconf import DictConfig, OmegaConf
+
+_PACKAGE_DIR = Path(__file__).resolve().parent
+
+#: Preset used for each group when nothing is given (dict overrides merge on top of it).
+GROUP_DEFAULTS = {"backend": "pymunk", "task": "nav", "noise": "none", "robot": "wolfgang", "walk": "default"}
+
+
+def conf_dir() -> Path:
+    """The config directory: inside the installed package (wheel) or at the repository top."""
+    for candidate in (_PACKAGE_DIR / "conf", _PACKAGE_DIR.parent / "conf"):
+        if (candidate / "config.yaml").is_file():
+            return candidate
+    raise FileNotFoundError(
+        f"footsim's conf/ directory was not found (looked in {_PACKAGE_DIR / 'conf'} and {_PACKAGE_DIR.parent / 'conf'})"
+    )
+
+
+def available(group: str) -> list[str]:
+    return sorted(p.stem for p in (conf_dir() / group).glob("*.yaml"))
+
+
+def load_preset(group: str, spec: str | Mapping | None) -> dict:
+    """A group's config as a plain dict: a preset name, or a mapping merged over the default preset."""
+    if spec is None:
+        spec = GROUP_DEFAULTS[group]
+    if isinstance(spec, str):
+        path = conf_dir() / group / f"{spec}.yaml"
+        if not path.is_file():
+            raise ValueError(f"unknown {group} preset {spec!r}; available: {', '.join(available(group))}")
+        return OmegaConf.to_container(OmegaConf.load(path), resolve=True)
+    if isinstance(spec, (Mapping, DictConfig)):
+        data = OmegaConf.to_container(spec, resolve=True) if isinstance(spec, DictConfig) else dict(spec)
+        base_name = data.get("name") if group in ("backend", "task", "robot") else None
+        if base_name is not None and (conf_dir() / group / f"{base_name}.yaml").is_file():
+            base = load_preset(group, base_name)
+        else:
+            base = load_preset(group, GROUP_DEFAULTS[group])
+        return OmegaConf.to_container(OmegaConf.merge(base, data), resolve=True)
+    raise TypeError(f"{group} must be a preset name or a mapping, got {type(spec).__name__}")
+
+
+def _number(cfg: Mapping, key: str, where: str) -> float:
+    value = cfg[key]
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ValueError(f"{where}.{key} must be a finite number, got {value!r}")
+    return float(value)
+
+
+def build_task(task_cfg: Mapping):
+    """``(SceneSampler, NavTaskConfig)`` from a task config, naming any bad key."""
+    from footsim.tasks.nav import NavTaskConfig
+    from footsim.tasks.scenes import SceneSampler
+
+    cfg = dict(task_cfg)
+    cfg.pop("name", None)
+    scenes = dict(cfg.pop("scenes", {}) or {})
+    obstacles = bool(cfg.pop("obstacles", False))
+    if "success_angle_deg" in cfg:
+        cfg["success_angle"] = math.radians(_number(cfg, "success_angle_deg", "task"))
+        cfg.pop("success_angle_deg")
+    known = {"max_steps", "success_distance", "success_angle", "distance_scale", "n_rays", "ray_range",
+             "ray_scale", "reward_weights"}
+    unknown = sorted(set(cfg) - known)
+    if unknown:
+        raise ValueError(f"task: unknown key(s) {unknown}; valid: {sorted(known | {'name', 'obstacles', 'scenes', 'success_angle_deg'})}")
+    for key in known - {"reward_weights", "max_steps", "n_rays"}:
+        if key in cfg:
+            cfg[key] = _number(cfg, key, "task")
+    for key in ("max_steps", "n_rays"):
+        if key in cfg:
+            cfg[key] = int(_number(cfg, key, "task"))
+    if "reward_weights" in cfg:
+        cfg["reward_weights"] = {k: _number(cfg["reward_weights"], k, "task.reward_weights") for k in cfg["reward_weights"]}
+    sampler_fields = set(SceneSampler.__dataclass_fields__) - {"obstacles"}
+    unknown = sorted(set(scenes) - sampler_fields)
+    if unknown:
+        raise ValueError(f"task.scenes: unknown key(s) {unknown}; valid: {sorted(sampler_fields)}")
+    for key in scenes:
+        scenes[key] = _number(scenes, key, "task.scenes")
+    for key in ("n_obstacles_robot", "n_obstacles_goal"):
+        if key in scenes:
+            scenes[key] = int(scenes[key])
+    return SceneSampler(obstacles=obstacles, **scenes), NavTaskConfig(obstacles=obstacles, **cfg)
+
+
+def build_noise(noise_cfg: Mapping):
+    from footsim.tasks.noise import NoiseModel
+
+    cfg = dict(noise_cfg)
+    cfg.pop("name", None)
+    known = set(NoiseModel.__dataclass_fields__)
+    unknown = sorted(set(cfg) - known)
+    if unknown:
+        raise ValueError(f"noise: unknown key(s) {unknown}; valid: {sorted(known)}")
+    return NoiseModel(**{k: _number(cfg, k, "noise") for k in cfg})
+
+
+def build_walk(walk_cfg: Mapping):
+    from footsim.walk.params import WalkParams
+
+    cfg = dict(walk_cfg)
+    cfg.pop("name", None)
+    return WalkParams.from_mapping(cfg)
+
+
+def build_robot(robot_cfg: Mapping | str):
+    from footsim.robots import get_robot
+
+    name = robot_cfg if isinstance(robot_cfg, str) else dict(robot_cfg).get("name")
+    return get_robot(name)
+
+
+def build_backend(backend_cfg: Mapping, robot, walk):
+    from footsim.backends.base import backend_class
+
+    cfg = dict(backend_cfg)
+    name = cfg.pop("name", None)
+    if name is None:
+        raise ValueError("backend: config has no 'name'")
+    return backend_class(name)(robot=robot, walk=walk, **cfg)
+
+
+def to_plain(cfg: Any) -> Any:
+    return OmegaConf.to_container(cfg, resolve=True) if isinstance(cfg, DictConfig) else cfg

@@ -1,0 +1,189 @@
+"""``FootstepEnv``: the gymnasium environment tying task, noise and backend together.
+
+One env step is one double step: action (6-D, [-1, 1]) → ``DoubleStep`` → backend →
+``StepResult`` (truth) → noise → observation and reward.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Mapping
+
+import gymnasium as gym
+import numpy as np
+
+from footsim import config as fconf
+from footsim.backends.base import RenderOverlay
+from footsim.geometry import Pose2D
+from footsim.tasks import nav
+from footsim.tasks.scenes import Scene
+from footsim.walk.footsteps import DoubleStep
+
+OUTCOMES = ("running", "success", "timeout", "fall", "collision", "sim_error")
+
+
+class FootstepEnv(gym.Env):
+    """Footstep navigation to a goal pose (thesis chapter 5) on any footsim backend.
+
+    Args:
+        backend: backend preset name (``pymunk``, ``mujoco``, ``dm_control``, ``pybullet``) or a
+            mapping with ``name`` and options.
+        task: task preset (``nav``, ``nav_obstacles``) or a mapping merged over ``nav``.
+        obstacles: shortcut — ``True`` selects ``nav_obstacles`` when ``task`` is not given.
+        noise: noise preset (``none``, ``localization``) or mapping (``sigma_x`` …).
+        robot, walk: presets or mappings of the ``robot`` and ``walk`` groups.
+        scenes: optional list of ``Scene`` to cycle through instead of sampling (evaluation);
+            a scene can also be passed per episode as ``reset(options={"scene": scene})``.
+
+    Actions outside [-1, 1] are clipped; NaN or inf raise ``ValueError``.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 2}
+
+    def __init__(
+        self,
+        backend: str | Mapping = "pymunk",
+        task: str | Mapping | None = None,
+        obstacles: bool | None = None,
+        noise: str | Mapping = "none",
+        robot: str | Mapping = "wolfgang",
+        walk: str | Mapping | None = None,
+        scenes: list[Scene] | None = None,
+        render_mode: str | None = None,
+    ):
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        if task is None:
+            task = "nav_obstacles" if obstacles else "nav"
+        self.config = {
+            "backend": fconf.load_preset("backend", {"name": backend} if isinstance(backend, str) else backend),
+            "task": fconf.load_preset("task", task),
+            "noise": fconf.load_preset("noise", noise),
+            "robot": fconf.load_preset("robot", robot),
+            "walk": fconf.load_preset("walk", walk),
+        }
+        if obstacles is not None and bool(obstacles) != bool(self.config["task"].get("obstacles")):
+            raise ValueError(f"obstacles={obstacles} contradicts task {self.config['task'].get('name')!r}")
+        self.sampler, self.task = fconf.build_task(self.config["task"])
+        self.noise = fconf.build_noise(self.config["noise"])
+        self.robot = fconf.build_robot(self.config["robot"])
+        self.walk = fconf.build_walk(self.config["walk"])
+        self.backend = fconf.build_backend(self.config["backend"], self.robot, self.walk)
+        self.limits = self.robot.step_limits
+        self.render_mode = render_mode
+        self.fixed_scenes = list(scenes) if scenes is not None else None
+        self._scene_index = 0
+
+        self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(6,), dtype=np.float32)
+        self.observation_space = gym.spaces.Box(-1.0, 1.0, shape=(self.task.observation_size,), dtype=np.float32)
+
+        self.scene: Scene | None = None
+        self._prev_actions = (np.zeros(6), np.zeros(6))
+        self._steps = 0
+        self._time = 0.0
+        self._pose = Pose2D()
+        self._believed = Pose2D()
+        self._outcome = "running"
+
+    # -- gymnasium API --------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        options = options or {}
+        if "scene" in options:
+            self.scene = options["scene"]
+        elif self.fixed_scenes is not None:
+            self.scene = self.fixed_scenes[self._scene_index % len(self.fixed_scenes)]
+            self._scene_index += 1
+        else:
+            self.scene = self.sampler.sample(self.np_random)
+        # Independent streams so that e.g. switching noise off leaves scene sampling unchanged.
+        self._noise_rng = np.random.default_rng(int(self.np_random.integers(2**63)))
+        backend_rng = np.random.default_rng(int(self.np_random.integers(2**63)))
+        self._pose = self.backend.reset(self.scene, backend_rng)
+        self._prev_actions = (np.zeros(6), np.zeros(6))
+        self._steps = 0
+        self._time = 0.0
+        self._outcome = "running"
+        self._believed = self.noise.believe(self._pose, self._noise_rng)
+        obs = nav.observation(self._believed, self.scene, self._prev_actions, self.task)
+        return obs, self._info({})
+
+    def step(self, action):
+        if self.scene is None:
+            raise RuntimeError("step() called before reset()")
+        double_step = DoubleStep.from_action(action, self.limits)  # validates: 6 finite values
+        action = np.clip(np.asarray(action, dtype=float).reshape(6), -1.0, 1.0)
+        result = self.backend.execute(double_step)
+        self._steps += 1
+        self._time += result.duration_s
+
+        terminated = False
+        if result.sim_error is None and all(math.isfinite(v) for v in result.pose):
+            self._pose = result.pose
+        else:  # keep the last valid pose: the learner must never see NaN
+            result.sim_error = result.sim_error or "non-finite pose"
+        terms = nav.reward_terms(self._pose, self.scene, action, self._prev_actions[0])
+        reward = nav.weighted_reward(terms, self.task.reward_weights)
+
+        if result.sim_error is not None:
+            self._outcome, terminated, reward = "sim_error", True, 0.0
+        elif result.fell:
+            self._outcome, terminated = "fall", True
+        elif result.collided and self.backend.collision_ends_episode:
+            self._outcome, terminated = "collision", True
+        elif nav.is_success(self._pose, self.scene.goal, self.task):
+            self._outcome, terminated = "success", True
+            reward += float(self.task.max_steps - self._steps)  # the rest of the episode at max reward
+        truncated = not terminated and self._steps >= self.task.max_steps
+        if truncated:
+            self._outcome = "timeout"
+
+        self._prev_actions = (action, self._prev_actions[0])
+        self._believed = self.noise.believe(self._pose, self._noise_rng)
+        obs = nav.observation(self._believed, self.scene, self._prev_actions, self.task)
+        info = self._info(terms, result)
+        return obs, float(reward), terminated, truncated, info
+
+    def render(self):
+        if self.render_mode != "rgb_array":
+            return None
+        rays = None
+        if self.task.obstacles:
+            dists = nav.ray_distances(self._believed, self.scene.all_obstacles, self.task.n_rays, self.task.ray_range)
+            angles = self._believed.theta + np.arange(self.task.n_rays) * (2 * math.pi / self.task.n_rays)
+            rays = np.stack([self._believed.x + dists * np.cos(angles), self._believed.y + dists * np.sin(angles)], 1)
+        overlay = RenderOverlay(
+            goal=self.scene.goal, ray_endpoints=rays, believed=self._believed,
+            reached=nav.is_success(self._pose, self.scene.goal, self.task),
+        )
+        return self.backend.render(overlay)
+
+    def close(self):
+        self.backend.close()
+
+    # -- helpers --------------------------------------------------------------------------
+    def _info(self, terms: dict, result=None) -> dict[str, Any]:
+        info = {
+            "pose": np.array(self._pose, dtype=float),
+            "pose_estimate": np.array(self._believed, dtype=float),
+            "outcome": self._outcome,
+            "time_s": self._time,
+            "steps": self._steps,
+            "reward_terms": dict(terms),
+        }
+        if result is not None:
+            info["collided"] = bool(result.collided)
+            info["executed_action"] = None if result.executed is None else result.executed.as_array()
+            if result.sim_error is not None:
+                info["sim_error"] = result.sim_error
+            info.update(result.info)
+        return info
+
+
+def make_env(cfg, scenes: list[Scene] | None = None, render_mode: str | None = None) -> FootstepEnv:
+    """Build an env from a composed Hydra config (groups ``backend task noise robot walk``)."""
+    plain = fconf.to_plain(cfg)
+    return FootstepEnv(
+        backend=plain["backend"], task=plain["task"], noise=plain["noise"], robot=plain["robot"],
+        walk=plain["walk"], scenes=scenes, render_mode=render_mode,
+    )

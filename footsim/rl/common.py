@@ -1,0 +1,113 @@
+"""Shared pieces of training and evaluation: atomic files, model construction, policy loading."""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+from omegaconf import DictConfig, OmegaConf
+
+from footsim.tasks.scenes import atomic_write_text
+
+MODEL_FILE = "model.zip"
+VECNORM_FILE = "vecnormalize.pkl"
+CONFIG_FILE = "config.yaml"
+CHECKPOINT_DIR = "checkpoints"
+
+
+def atomic_save(save: Callable[[str], None], path: str | os.PathLike, suffix: str) -> None:
+    """Let ``save`` write a temporary file beside ``path`` and move it into place atomically."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=suffix)
+    os.close(fd)
+    try:
+        save(tmp)
+        os.replace(tmp, path)
+    finally:
+        Path(tmp).unlink(missing_ok=True)
+
+
+def write_json(path: str | os.PathLike, data) -> None:
+    atomic_write_text(path, json.dumps(data, indent=2, default=float) + "\n")
+
+
+def save_config(run_dir: Path, cfg: DictConfig) -> None:
+    atomic_write_text(run_dir / CONFIG_FILE, OmegaConf.to_yaml(cfg, resolve=True))
+
+
+def load_run_config(run_dir: str | os.PathLike) -> DictConfig:
+    path = Path(run_dir) / CONFIG_FILE
+    if not path.is_file():
+        raise FileNotFoundError(f"{run_dir} is not a footsim run directory: {CONFIG_FILE} is missing")
+    return OmegaConf.load(path)
+
+
+def validate_train_config(cfg: DictConfig) -> None:
+    """Fail at start, naming the key, on values that cannot work."""
+    positive_ints = {
+        "train.total_timesteps": cfg.train.total_timesteps,
+        "train.n_envs": cfg.train.n_envs,
+        "train.checkpoint_freq": cfg.train.checkpoint_freq,
+        "agent.n_steps": cfg.agent.n_steps,
+        "agent.batch_size": cfg.agent.batch_size,
+        "agent.n_epochs": cfg.agent.n_epochs,
+        "eval.n_scenes": cfg.eval.n_scenes,
+    }
+    for key, value in positive_ints.items():
+        if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
+            raise ValueError(f"{key} must be a positive integer, got {value!r}")
+    for key in ("learning_rate", "gamma", "gae_lambda", "clip_range", "vf_coef", "max_grad_norm"):
+        value = cfg.agent[key]
+        if not isinstance(value, (int, float)) or not np.isfinite(value) or value <= 0:
+            raise ValueError(f"agent.{key} must be a positive number, got {value!r}")
+    if cfg.agent.gamma > 1 or cfg.agent.gae_lambda > 1:
+        raise ValueError("agent.gamma and agent.gae_lambda must be <= 1")
+    if cfg.agent.ent_coef < 0:
+        raise ValueError(f"agent.ent_coef must be >= 0, got {cfg.agent.ent_coef!r}")
+    if cfg.agent.activation not in ("tanh", "relu"):
+        raise ValueError(f"agent.activation must be tanh or relu, got {cfg.agent.activation!r}")
+    if cfg.train.vec_env not in ("auto", "dummy", "subproc"):
+        raise ValueError(f"train.vec_env must be auto, dummy or subproc, got {cfg.train.vec_env!r}")
+
+
+def policy_kwargs(agent: DictConfig) -> dict:
+    import torch
+
+    return {
+        "net_arch": {"pi": list(agent.net_arch.pi), "vf": list(agent.net_arch.vf)},
+        "activation_fn": {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU}[agent.activation],
+        "log_std_init": float(agent.log_std_init),
+    }
+
+
+class LoadedPolicy:
+    """A trained run's policy as a function obs → action (with its observation normalization)."""
+
+    def __init__(self, run_dir: str | os.PathLike, model_file: str = MODEL_FILE):
+        from stable_baselines3 import PPO
+
+        run_dir = Path(run_dir)
+        path = run_dir / model_file
+        if not path.is_file():
+            raise FileNotFoundError(f"no trained model at {path}")
+        self.model = PPO.load(path, device="cpu")
+        self.obs_rms = None
+        vecnorm = run_dir / VECNORM_FILE
+        if vecnorm.is_file():
+            import pickle
+
+            with open(vecnorm, "rb") as fh:
+                stats = pickle.load(fh)
+            if getattr(stats, "norm_obs", False):
+                self.obs_rms, self.clip_obs, self.epsilon = stats.obs_rms, stats.clip_obs, stats.epsilon
+
+    def __call__(self, obs: np.ndarray, deterministic: bool = True) -> np.ndarray:
+        if self.obs_rms is not None:
+            obs = np.clip((obs - self.obs_rms.mean) / np.sqrt(self.obs_rms.var + self.epsilon), -self.clip_obs, self.clip_obs)
+        action, _ = self.model.predict(obs, deterministic=deterministic)
+        return action

@@ -1,0 +1,161 @@
+"""Training: ``footsim-train [overrides]`` — SB3 PPO on any backend, then an evaluation.
+
+The run directory is Hydra's output dir.  It receives ``config.yaml`` (resolved), ``model.zip``,
+``vecnormalize.pkl``, ``checkpoints/`` (written atomically every ``train.checkpoint_freq`` env
+steps), TensorBoard logs in ``tb/``, and ``eval/`` with the evaluation results.
+``footsim-train resume=RUN_DIR`` continues an interrupted run from its latest checkpoint.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+from omegaconf import DictConfig, OmegaConf
+
+from footsim.rl.common import (
+    CHECKPOINT_DIR, MODEL_FILE, VECNORM_FILE, atomic_save, load_run_config, policy_kwargs, save_config,
+    validate_train_config, write_json,
+)
+
+LATEST = "latest.zip"
+LATEST_VECNORM = "latest_vecnormalize.pkl"
+
+
+def _env_factory(cfg: DictConfig, rank: int):
+    plain = OmegaConf.to_container(cfg, resolve=True)
+
+    def make():
+        from stable_baselines3.common.monitor import Monitor
+
+        from footsim.env import make_env
+
+        return Monitor(make_env(plain))
+
+    return make
+
+
+def build_vec_env(cfg: DictConfig):
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
+
+    n_envs = int(cfg.train.n_envs)
+    kind = cfg.train.vec_env
+    if kind == "auto":  # the 2D env is far cheaper than inter-process messaging
+        kind = "dummy" if cfg.backend.name == "pymunk" or n_envs == 1 else "subproc"
+    factories = [_env_factory(cfg, i) for i in range(n_envs)]
+    venv = DummyVecEnv(factories) if kind == "dummy" else SubprocVecEnv(factories, start_method="forkserver")
+    venv.seed(int(cfg.seed))
+    if cfg.agent.normalize_reward or cfg.agent.normalize_obs:
+        venv = VecNormalize(venv, norm_obs=bool(cfg.agent.normalize_obs), norm_reward=bool(cfg.agent.normalize_reward),
+                            gamma=float(cfg.agent.gamma))
+    return venv
+
+
+def _make_checkpoint_callback(run_dir: Path, every: int, n_envs: int):
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class AtomicCheckpoint(BaseCallback):
+        """Saves model (and normalization stats) atomically, so an interruption never corrupts them."""
+
+        def __init__(self):
+            super().__init__()
+            self.every = max(every // n_envs, 1)
+
+        def _on_step(self) -> bool:
+            if self.n_calls % self.every == 0:
+                save_checkpoint(self.model, run_dir)
+            return True
+
+    return AtomicCheckpoint()
+
+
+def save_checkpoint(model, run_dir: Path) -> None:
+    ckpt = run_dir / CHECKPOINT_DIR
+    atomic_save(model.save, ckpt / LATEST, ".zip")
+    venv = model.get_vec_normalize_env()
+    if venv is not None:
+        atomic_save(venv.save, ckpt / LATEST_VECNORM, ".pkl")
+    write_json(ckpt / "latest.json", {"num_timesteps": int(model.num_timesteps), "time": time.time()})
+
+
+def train(cfg: DictConfig, run_dir: Path) -> dict:
+    """Train (or resume) and evaluate; returns the evaluation summary (the sweep objective)."""
+    import torch
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    resume_dir = Path(cfg.resume).expanduser().resolve() if cfg.get("resume") else None
+    if resume_dir is not None:
+        cfg = load_run_config(resume_dir)
+        run_dir = resume_dir
+        if not (run_dir / CHECKPOINT_DIR / LATEST).is_file():
+            raise FileNotFoundError(f"resume: no checkpoint in {run_dir / CHECKPOINT_DIR}")
+    validate_train_config(cfg)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    save_config(run_dir, cfg)
+    torch.set_num_threads(1)  # small MLPs: threads cost more than they gain next to the env workers
+
+    venv = build_vec_env(cfg)
+    agent = cfg.agent
+    if resume_dir is not None:
+        if isinstance(venv, VecNormalize) and (run_dir / CHECKPOINT_DIR / LATEST_VECNORM).is_file():
+            venv = VecNormalize.load(str(run_dir / CHECKPOINT_DIR / LATEST_VECNORM), venv.venv)
+        model = PPO.load(run_dir / CHECKPOINT_DIR / LATEST, env=venv, device="cpu")
+        done = int(model.num_timesteps)
+        print(f"resuming {run_dir} at {done} of {cfg.train.total_timesteps} steps")
+    else:
+        model = PPO(
+            "MlpPolicy", venv, policy_kwargs=policy_kwargs(agent), learning_rate=float(agent.learning_rate),
+            n_steps=int(agent.n_steps), batch_size=int(agent.batch_size), n_epochs=int(agent.n_epochs),
+            gamma=float(agent.gamma), gae_lambda=float(agent.gae_lambda), clip_range=float(agent.clip_range),
+            ent_coef=float(agent.ent_coef), vf_coef=float(agent.vf_coef), max_grad_norm=float(agent.max_grad_norm),
+            tensorboard_log=str(run_dir / "tb") if cfg.train.tensorboard else None, seed=int(cfg.seed),
+            device="cpu", verbose=0,
+        )
+        done = 0
+    remaining = int(cfg.train.total_timesteps) - done
+    started = time.time()
+    if remaining > 0:
+        callback = _make_checkpoint_callback(run_dir, int(cfg.train.checkpoint_freq), int(cfg.train.n_envs))
+        try:
+            model.learn(total_timesteps=remaining, callback=callback, progress_bar=bool(cfg.train.progress_bar),
+                        reset_num_timesteps=resume_dir is None, tb_log_name="ppo")
+        except KeyboardInterrupt:
+            save_checkpoint(model, run_dir)
+            print(f"\ninterrupted: checkpoint saved; continue with footsim-train resume={run_dir}")
+            raise
+    wall = time.time() - started
+    atomic_save(model.save, run_dir / MODEL_FILE, ".zip")
+    if isinstance(model.get_vec_normalize_env(), VecNormalize):
+        atomic_save(model.get_vec_normalize_env().save, run_dir / VECNORM_FILE, ".pkl")
+    save_checkpoint(model, run_dir)
+    venv.close()
+    write_json(run_dir / "train_info.json", {"num_timesteps": int(model.num_timesteps), "wall_time_s": wall,
+                                             "steps_per_s": remaining / wall if wall > 0 and remaining > 0 else None})
+    print(f"trained {model.num_timesteps} steps in {wall:.0f} s; model: {run_dir / MODEL_FILE}")
+
+    if not cfg.eval.after_train:
+        return {}
+    from footsim.rl.evaluate import evaluate_run
+
+    return evaluate_run(cfg, run_dir, run_dir / "eval", cfg.eval)
+
+
+def _main(cfg: DictConfig):
+    from hydra.core.hydra_config import HydraConfig
+
+    summary = train(cfg, Path(HydraConfig.get().runtime.output_dir))
+    return summary.get("success") if summary else None
+
+
+def main() -> None:
+    import hydra
+
+    from footsim.config import conf_dir
+
+    hydra.main(config_path=str(conf_dir()), config_name="config", version_base="1.3")(_main)()
+
+
+if __name__ == "__main__":
+    main()
