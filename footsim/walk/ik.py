@@ -134,6 +134,63 @@ def leg_fk(q, side, leg: LegGeometry = LegGeometry()) -> tuple[np.ndarray, np.nd
 # --- inverse kinematics ----------------------------------------------------------------------
 
 
+def solve_leg_ik(p, R, side_sign, leg: LegGeometry = LegGeometry()):
+    """IK core on component-major arrays: ``p (3, n)``, ``R (3, 3, n)`` (rows, columns, samples).
+
+    Component-major keeps every coordinate a contiguous vector, which is what makes a whole
+    half step of IK cost tens of microseconds.  ``side_sign`` is +1 (left) / -1 (right), scalar
+    or ``(n,)``.  Returns ``(q (6, n), reachable (n,))`` with no limit handling; callers check
+    finiteness.
+    """
+    L1, L2 = leg.thigh, leg.shin
+    a2s = leg.ankle_to_sole
+    # Ankle (pitch/roll intersection) sits ankle_to_sole above the sole along the foot's z
+    # axis; hip = HipRoll/HipPitch intersection, independent of the hip yaw.  d = hip - ankle.
+    dx = -p[0] - a2s * R[0, 2]
+    dy = side_sign * leg.hip_offset_y - p[1] - a2s * R[1, 2]
+    dz = -leg.hip_offset_z - p[2] - a2s * R[2, 2]
+    # Hip as seen from the ankle, in the foot frame (R^T d): only the knee, ankle pitch and
+    # ankle roll lie between them, which decouples the problem.
+    vx = R[0, 0] * dx + R[1, 0] * dy + R[2, 0] * dz
+    vy = R[0, 1] * dx + R[1, 1] * dy + R[2, 1] * dz
+    vz = R[0, 2] * dx + R[1, 2] * dy + R[2, 2] * dz
+    ankle_roll = np.arctan2(vy, vz)
+    cos_knee = (vx * vx + vy * vy + vz * vz - (L1 * L1 + L2 * L2)) / (2.0 * L1 * L2)
+    reachable = np.abs(cos_knee) <= 1.0
+    knee = np.arccos(np.clip(cos_knee, -1.0, 1.0))  # clamped: out of reach → straight/folded
+    # In the plane of the leg (after undoing the ankle roll) the hip is at w = (v_x, 0, |v_yz|);
+    # with the knee bent the same point is at u = (-L1 sin k, 0, L1 cos k + L2) before the
+    # ankle pitch rotates it, so the ankle pitch is the angle between u and w (about +y).
+    ankle_pitch = np.arctan2(-L1 * np.sin(knee), L1 * np.cos(knee) + L2) - np.arctan2(vx, np.hypot(vy, vz))
+    # Remaining hip rotation M = Rz(yaw) Rx(roll) Ry(pitch) = R Rx(-ankle_roll) Ry(-b), b = knee +
+    # ankle pitch; only the entries the ZXY decomposition needs are formed.
+    cr, sr = np.cos(ankle_roll), np.sin(ankle_roll)
+    b = knee + ankle_pitch
+    cb, sb = np.cos(b), np.sin(b)
+    m01 = R[0, 1] * cr - R[0, 2] * sr
+    m11 = R[1, 1] * cr - R[1, 2] * sr
+    m21 = R[2, 1] * cr - R[2, 2] * sr
+    r2_rolled = R[2, 1] * sr + R[2, 2] * cr
+    m20 = R[2, 0] * cb + r2_rolled * sb
+    m22 = r2_rolled * cb - R[2, 0] * sb
+    q = np.empty((6,) + np.shape(cos_knee))
+    q[0] = np.arctan2(-m01, m11)  # hip yaw
+    q[1] = np.arcsin(np.clip(m21, -1.0, 1.0))  # hip roll
+    q[2] = np.arctan2(-m20, m22)  # hip pitch
+    q[3] = knee
+    q[4] = ankle_pitch
+    q[5] = ankle_roll
+    return q, reachable
+
+
+def apply_joint_limits(q: np.ndarray, reachable: np.ndarray, limits) -> tuple[np.ndarray, np.ndarray]:
+    """Clip ``q (n, 6)`` to ``limits (6, 2)`` (or ``(n, 6, 2)``); clipped rows become unreachable."""
+    lim = np.asarray(limits, dtype=float)
+    clipped = np.clip(q, lim[..., 0], lim[..., 1])
+    reachable = reachable & np.all(np.abs(clipped - q) <= _LIMIT_TOLERANCE, axis=-1)
+    return clipped, reachable
+
+
 def leg_ik_rotation(foot_pos, foot_rot, side_sign, leg: LegGeometry = LegGeometry(), limits=None):
     """:func:`leg_ik` with the target orientation as rotation matrices ``(n, 3, 3)``.
 
@@ -146,48 +203,10 @@ def leg_ik_rotation(foot_pos, foot_rot, side_sign, leg: LegGeometry = LegGeometr
         raise ValueError(f"foot_pos must be (n, 3) and foot_rot (n, 3, 3); got {p.shape} and {R.shape}")
     if not (np.all(np.isfinite(p)) and np.all(np.isfinite(R))):
         raise ValueError("leg IK target contains NaN or inf")
-    sign = np.broadcast_to(np.asarray(side_sign, dtype=float), (p.shape[0],))
-    L1, L2 = leg.thigh, leg.shin
-    # Ankle (pitch/roll intersection) sits ankle_to_sole above the sole along the foot's z axis.
-    # Hip = HipRoll/HipPitch intersection, independent of the hip yaw.
-    d = -p - leg.ankle_to_sole * R[:, :, 2]  # hip - ankle, before adding the hip offset
-    d[:, 1] += sign * leg.hip_offset_y
-    d[:, 2] -= leg.hip_offset_z
-    # Hip as seen from the ankle, in the foot frame (R^T d): only the knee, ankle pitch and
-    # ankle roll lie between them, which decouples the problem.
-    vx = R[:, 0, 0] * d[:, 0] + R[:, 1, 0] * d[:, 1] + R[:, 2, 0] * d[:, 2]
-    vy = R[:, 0, 1] * d[:, 0] + R[:, 1, 1] * d[:, 1] + R[:, 2, 1] * d[:, 2]
-    vz = R[:, 0, 2] * d[:, 0] + R[:, 1, 2] * d[:, 1] + R[:, 2, 2] * d[:, 2]
-    ankle_roll = np.arctan2(vy, vz)
-    cos_knee = (vx * vx + vy * vy + vz * vz - L1 * L1 - L2 * L2) / (2.0 * L1 * L2)
-    reachable = np.abs(cos_knee) <= 1.0
-    knee = np.arccos(np.clip(cos_knee, -1.0, 1.0))
-    # In the plane of the leg (after undoing the ankle roll) the hip is at w = (v_x, 0, |v_yz|);
-    # with the knee bent the same point is at u = (-L1 sin k, 0, L1 cos k + L2) before the
-    # ankle pitch rotates it, so the ankle pitch is the angle between u and w (about +y).
-    ankle_pitch = np.arctan2(-L1 * np.sin(knee), L1 * np.cos(knee) + L2) - np.arctan2(vx, np.hypot(vy, vz))
-    # Remaining hip rotation M = Rz(yaw) Rx(roll) Ry(pitch) = R Rx(-ankle_roll) Ry(-b), b = knee +
-    # ankle pitch; only the entries the ZXY decomposition needs are formed.
-    cr, sr = np.cos(ankle_roll), np.sin(ankle_roll)
-    b = knee + ankle_pitch
-    cb, sb = np.cos(b), np.sin(b)
-    m01 = R[:, 0, 1] * cr - R[:, 0, 2] * sr
-    m11 = R[:, 1, 1] * cr - R[:, 1, 2] * sr
-    m21 = R[:, 2, 1] * cr - R[:, 2, 2] * sr
-    r2x_sb = R[:, 2, 1] * sr + R[:, 2, 2] * cr
-    m20 = R[:, 2, 0] * cb + r2x_sb * sb
-    m22 = -R[:, 2, 0] * sb + r2x_sb * cb
-    hip_roll = np.arcsin(np.clip(m21, -1.0, 1.0))
-    hip_yaw = np.arctan2(-m01, m11)
-    hip_pitch = np.arctan2(-m20, m22)
-    q = np.stack([hip_yaw, hip_roll, hip_pitch, knee, ankle_pitch, ankle_roll], axis=1)
+    q, reachable = solve_leg_ik(p.T, R.transpose(1, 2, 0), np.asarray(side_sign, dtype=float), leg)
+    q = q.T
     if limits is not None:
-        lim = np.asarray(limits, dtype=float)
-        if lim.ndim == 2:
-            lim = np.broadcast_to(lim, (p.shape[0],) + lim.shape)
-        clipped = np.clip(q, lim[..., 0], lim[..., 1])
-        reachable &= np.all(np.abs(clipped - q) <= _LIMIT_TOLERANCE, axis=1)
-        q = clipped
+        q, reachable = apply_joint_limits(q, reachable, limits)
     return q, reachable
 
 
