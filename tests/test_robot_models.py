@@ -168,6 +168,8 @@ def test_leg_geometry_is_the_public_chain(spec):
         (0.055, 0.0414, 0.169, 0.170, 0.0529))
     assert spec.leg_joint_names("left") == tuple("L" + j for j in LEG)
     assert spec.leg_joint_names("R") == tuple("R" + j for j in LEG)
+    assert spec.leg_limits("left").shape == (6, 2)
+    assert spec.leg_limits("right")[1] == pytest.approx((spec.joint("RHipRoll").lower, spec.joint("RHipRoll").upper))
     with pytest.raises(ValueError, match="side"):
         spec.leg_joint_names("middle")
     # Straight legs: torso origin -> sole 0.433 m (FACTS).
@@ -358,6 +360,25 @@ def test_mujoco_sole_matches_hand_kinematics(spec, mj):
             ref_pos, ref_rot = leg_fk(legs, side, leg_q(spec, q, side))
             np.testing.assert_allclose(pos, ref_pos, atol=1e-9)
             np.testing.assert_allclose(rot, ref_rot, atol=1e-9)
+
+
+def test_walk_engine_ik_drives_the_mujoco_sole_where_asked(spec, mj):
+    """The walk package's IK, with this spec's leg geometry and limits, lands MuJoCo's sole site
+    on the target: the IK and the generated model share one convention."""
+    ik = pytest.importorskip("footsim.walk.ik")
+    if not hasattr(ik, "leg_ik"):
+        pytest.skip("footsim.walk.ik has no leg_ik yet")
+    rng = np.random.default_rng(11)
+    for side, sign in (("left", 1.0), ("right", -1.0)):
+        for _ in range(10):
+            target = np.array([rng.uniform(-0.08, 0.08), sign * rng.uniform(0.06, 0.13), -rng.uniform(0.33, 0.40)])
+            rpy = np.array([0.0, 0.0, rng.uniform(-0.38, 0.38)])
+            q6, reachable = ik.leg_ik(target[None], rpy[None], side, spec.leg_geometry, spec.leg_limits(side))
+            assert reachable[0]
+            q = dict(zip(spec.leg_joint_names(side), q6[0]))
+            pos, rot = mujoco_sole(mj, spec, q, side)
+            np.testing.assert_allclose(pos, target, atol=1e-6)
+            np.testing.assert_allclose(rot, _rot("z", rpy[2]), atol=1e-6)
 
 
 def test_mjcf_robot_stands_in_walk_ready_pose(mj):

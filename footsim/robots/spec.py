@@ -448,6 +448,11 @@ class RobotSpec:
             self.joint(name)  # raises naming the missing joint
         return names
 
+    def leg_limits(self, side: Side | str) -> np.ndarray:
+        """``(6, 2)`` [lower, upper] of the leg joints of ``side`` in chain order (the form
+        ``footsim.walk.ik.leg_ik(..., limits=)`` takes)."""
+        return np.array([self.joint(n).range for n in self.leg_joint_names(side)])
+
     def sole(self, side: Side | str) -> tuple[str, Vec3]:
         """(foot link, sole position in the foot link frame)."""
         key = _side(side).value
