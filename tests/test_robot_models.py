@@ -278,6 +278,17 @@ def test_bad_specs_are_rejected():
         RobotSpec("r", base_link="a", links=(link, b), joints=(joint,), walk_ready={"k": 0.0})
     with pytest.raises(ValueError, match="no kinematic model"):
         RobotSpec("flat").leg_geometry
+    with pytest.raises(ValueError, match="unknown joint"):
+        wolfgang().link_transforms({"LToe": 0.1})
+    with pytest.raises(ValueError, match="finite"):
+        wolfgang().link_transforms({"LKnee": float("nan")})
+    from footsim.robots.mjcf import build_mjcf
+    from footsim.robots.urdf import build_urdf
+
+    with pytest.raises(ValueError, match="timestep"):
+        build_mjcf(wolfgang(), timestep=0.0)
+    with pytest.raises(ValueError, match="no kinematic model"):
+        build_urdf(RobotSpec("flat"))
 
 
 def test_robot_config(spec):
