@@ -733,7 +733,7 @@ def wolfgang() -> RobotSpec:
                 walk_ready[joint_name] = angle
             else:
                 mirrored = side is Side.RIGHT and joint_name in _MIRRORED
-                walk_ready[side_prefix(side) + joint_name] = -angle if mirrored else angle
+                walk_ready[side_prefix(side) + joint_name] = (-angle if mirrored else angle) + 0.0
 
     # Order joints as the real robot lists them: legs, arms, head.
     order = [side_prefix(sd) + j for sd in (Side.LEFT, Side.RIGHT) for j in LEG_JOINTS]
