@@ -118,10 +118,9 @@ def build_walk(walk_cfg: Mapping):
 
 
 def build_robot(robot_cfg: Mapping | str):
-    from footsim.robots import get_robot
+    from footsim.robots.spec import get_robot, robot_from_config
 
-    name = robot_cfg if isinstance(robot_cfg, str) else dict(robot_cfg).get("name")
-    return get_robot(name)
+    return get_robot(robot_cfg) if isinstance(robot_cfg, str) else robot_from_config(dict(robot_cfg))
 
 
 def build_backend(backend_cfg: Mapping, robot, walk):

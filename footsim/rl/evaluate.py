@@ -200,10 +200,9 @@ def _main(cfg) -> dict:
     run_dir = Path(cfg.run).expanduser().resolve()
     run_cfg = load_run_config(run_dir)
     OmegaConf.set_struct(run_cfg, False)
-    if cfg.backend is not None:
-        run_cfg.backend = fconf.load_preset("backend", {"name": cfg.backend} if isinstance(cfg.backend, str) else cfg.backend)
-    if cfg.noise is not None:
-        run_cfg.noise = fconf.load_preset("noise", cfg.noise)
+    for group in ("backend", "noise"):  # groups selected on the command line replace the run's
+        if cfg.get(group) is not None:
+            run_cfg[group] = fconf.load_preset(group, cfg[group])
     out_dir = Path(HydraConfig.get().runtime.output_dir)
     return evaluate_run(run_cfg, run_dir, out_dir, cfg)
 

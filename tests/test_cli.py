@@ -1,0 +1,88 @@
+"""End-to-end runs through the installed command lines (tiny budgets)."""
+
+import json
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.slow
+
+TINY = ["train.total_timesteps=256", "train.n_envs=2", "agent.n_steps=64", "agent.batch_size=64",
+        "agent.n_epochs=1", "train.checkpoint_freq=128", "train.progress_bar=false", "eval.n_scenes=5"]
+
+
+def run(*args, cwd=None, check=True):
+    proc = subprocess.run([*args], capture_output=True, text=True, cwd=cwd, timeout=600)
+    if check and proc.returncode != 0:
+        raise AssertionError(f"{args} failed ({proc.returncode}):\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}")
+    return proc
+
+
+def test_scenes_train_eval_resume(tmp_path):
+    scenes = tmp_path / "scenes.json"
+    run("footsim-scenes", f"out={scenes}", "n=4", "seed=3", "obstacles=true")
+    assert len(json.loads(scenes.read_text())["scenes"]) == 4
+
+    run_dir = tmp_path / "run"
+    out = run("footsim-train", *TINY, "task=nav_obstacles", f"hydra.run.dir={run_dir}").stdout
+    assert "| Approach | Success |" in out
+    for name in ("model.zip", "config.yaml", "vecnormalize.pkl", "checkpoints/latest.zip", "eval/summary.json",
+                 "eval/episodes.csv", "eval/goals.png"):
+        assert (run_dir / name).is_file(), name
+    assert list((run_dir / "tb").iterdir()), "tensorboard logs"
+    summary = json.loads((run_dir / "eval/summary.json").read_text())
+    assert summary["episodes"] == 5
+    assert sum(summary[k] for k in ("success", "timeout", "fall", "collision", "sim_error")) == pytest.approx(1)
+
+    eval_dir = tmp_path / "eval"
+    out = run("footsim-eval", f"run={run_dir}", f"scenes={scenes}", "noise=localization",
+              f"hydra.run.dir={eval_dir}").stdout
+    assert "noise=localization" in out
+    rows = (eval_dir / "episodes.csv").read_text().strip().splitlines()
+    assert len(rows) == 1 + 4
+    assert json.loads((eval_dir / "summary.json").read_text())["episodes"] == 4
+
+    # resume: extend the budget by editing nothing but the saved total, then continue
+    cfg = (run_dir / "config.yaml").read_text().replace("total_timesteps: 256", "total_timesteps: 512")
+    (run_dir / "config.yaml").write_text(cfg)
+    out = run("footsim-train", f"resume={run_dir}", f"hydra.run.dir={tmp_path / 'resume_log'}").stdout
+    assert "resuming" in out
+    info = json.loads((run_dir / "train_info.json").read_text())
+    assert info["num_timesteps"] >= 512
+
+
+@pytest.mark.parametrize("override,message", [
+    ("backend=bogus", "backend"),
+    ("train.n_envs=0", "train.n_envs must be a positive integer"),
+    ("noise.sigma_x=-0.1", "noise.sigma_x must be a number >= 0"),
+])
+def test_bad_config_fails_at_start_naming_the_key(tmp_path, override, message):
+    proc = run("footsim-train", *TINY, override, f"hydra.run.dir={tmp_path}", check=False)
+    assert proc.returncode != 0
+    assert message in proc.stdout + proc.stderr
+
+
+def test_scenes_cli_rejects_bad_n(tmp_path):
+    proc = run("footsim-scenes", f"out={tmp_path / 'x.json'}", "n=0", check=False)
+    assert proc.returncode != 0 and "n must be > 0" in proc.stderr
+
+
+def test_conf_is_found_from_a_built_wheel(tmp_path):
+    repo = Path(__file__).resolve().parents[1]
+    run(sys.executable, "-m", "build", "--wheel", "--outdir", str(tmp_path / "dist"), str(repo))
+    wheel = next((tmp_path / "dist").glob("footsim-*.whl"))
+    with zipfile.ZipFile(wheel) as zf:
+        names = zf.namelist()
+        assert "footsim/conf/config.yaml" in names and "footsim/conf/task/nav.yaml" in names
+        zf.extractall(tmp_path / "site")
+    code = ("import footsim.config as c, footsim.env as e; print(c.conf_dir());"
+            "env = e.FootstepEnv(obstacles=True); print(env.observation_space.shape)")
+    proc = run(sys.executable, "-c", code, cwd=tmp_path)
+    # PYTHONPATH makes the unpacked wheel shadow the editable install
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path,
+                          env={"PYTHONPATH": str(tmp_path / "site"), "PATH": "/usr/bin:/bin"})
+    assert proc.returncode == 0, proc.stderr
+    assert str(tmp_path / "site" / "footsim" / "conf") in proc.stdout and "(53,)" in proc.stdout

@@ -1,0 +1,124 @@
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env as gym_check_env
+from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+import footsim  # noqa: F401  (registers the env)
+from footsim.env import FootstepEnv
+from footsim.geometry import Pose2D
+from footsim.tasks.scenes import Obstacle, Scene
+
+
+@pytest.mark.parametrize("kwargs", [{}, {"obstacles": True}, {"obstacles": True, "noise": "localization"}])
+def test_env_checkers_pass(kwargs):
+    env = gym.make("footsim/FootstepNav-v0", **kwargs)
+    gym_check_env(env.unwrapped, skip_render_check=True)
+    sb3_check_env(FootstepEnv(**kwargs))
+
+
+def test_info_keys_and_spaces():
+    env = FootstepEnv(obstacles=True, noise="localization")
+    assert env.observation_space.shape == (53,) and env.action_space.shape == (6,)
+    obs, info = env.reset(seed=0)
+    for key in ("pose", "pose_estimate", "outcome", "time_s", "reward_terms"):
+        assert key in info
+    obs, r, term, trunc, info = env.step(np.zeros(6))
+    assert set(info["reward_terms"]) == {"distance", "angle", "orientation", "obstacle", "continuity"}
+    assert info["time_s"] == pytest.approx(1 / 1.9633)
+    assert not np.allclose(info["pose"], info["pose_estimate"])  # noise is applied
+
+
+def _rollout(env, seed, n=30):
+    obs, _ = env.reset(seed=seed)
+    rng = np.random.default_rng(seed)
+    out = [obs]
+    for _ in range(n):
+        obs, r, term, trunc, info = env.step(rng.uniform(-1, 1, 6))
+        out += [obs, np.array([r]), info["pose"]]
+        if term or trunc:
+            obs, _ = env.reset()
+    return np.concatenate([np.ravel(x) for x in out])
+
+
+def test_same_seed_same_episode():
+    a = _rollout(FootstepEnv(obstacles=True, noise="localization"), seed=5)
+    b = _rollout(FootstepEnv(obstacles=True, noise="localization"), seed=5)
+    c = _rollout(FootstepEnv(obstacles=True, noise="localization"), seed=6)
+    np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(a, c)
+
+
+def test_success_adds_the_remaining_steps():
+    # goal exactly where one forward double step puts the robot
+    env = FootstepEnv()
+    env.reset(seed=0, options={"scene": Scene(Pose2D(0.234, 0.0, 0.0))})
+    obs, r, term, trunc, info = env.step(np.array([1, 0, 0, 1, 0, 0.0]))
+    assert info["outcome"] == "success" and term
+    # all terms 1 except distance and continuity
+    base = 0.3 * 1 + 0.3 * 1 + 0.2 * 1 + 0.2 * (2 * math.exp(-3) + 4) / 6
+    assert r == pytest.approx(base + 99.0)
+
+
+def test_timeout_after_100_double_steps():
+    env = FootstepEnv()
+    env.reset(seed=0, options={"scene": Scene(Pose2D(5.0, 5.0, 0.0))})
+    for i in range(100):
+        obs, r, term, trunc, info = env.step(np.zeros(6))
+        assert not term
+    assert trunc and info["outcome"] == "timeout" and info["steps"] == 100
+
+
+def test_collision_ends_the_2d_episode():
+    env = FootstepEnv(obstacles=True)
+    scene = Scene(Pose2D(2.0, 0.0, 0.0), obstacles=(Obstacle(0.45, 0.0, 0.15),), ball=Obstacle(2.2, 0, 0.075))
+    env.reset(seed=0, options={"scene": scene})
+    obs, r, term, trunc, info = env.step(np.array([1, 0, 0, 1, 0, 0.0]))  # left foot lands at x=0.312
+    assert term and info["outcome"] == "collision"
+
+
+def test_walking_past_an_obstacle_is_not_a_collision():
+    env = FootstepEnv(obstacles=True)
+    scene = Scene(Pose2D(2.0, 0.0, 0.0), obstacles=(Obstacle(0.45, 0.5, 0.15),), ball=Obstacle(2.2, 0, 0.075))
+    env.reset(seed=0, options={"scene": scene})
+    for _ in range(3):
+        obs, r, term, trunc, info = env.step(np.array([1, 0, 0, 1, 0, 0.0]))
+        assert not term
+
+
+def test_bad_inputs_raise_clear_errors():
+    env = FootstepEnv()
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="NaN or inf"):
+        env.step(np.array([np.nan, 0, 0, 0, 0, 0]))
+    with pytest.raises(ValueError, match="unknown backend 'bogus'; valid backends: pymunk, mujoco"):
+        FootstepEnv(backend="bogus")
+    with pytest.raises(ValueError, match="unknown noise preset 'loud'"):
+        FootstepEnv(noise="loud")
+    with pytest.raises(ValueError, match="noise.sigma_x"):
+        FootstepEnv(noise={"sigma_x": -1.0})
+    with pytest.raises(ValueError, match="task.scenes.obstacle_radius_min|task.obstacle_radius_min"):
+        FootstepEnv(task={"name": "nav_obstacles", "scenes": {"obstacle_radius_min": -0.2}})
+    with pytest.raises(ValueError, match="task.max_steps"):
+        FootstepEnv(task={"max_steps": 0})
+
+
+def test_out_of_range_actions_are_clipped():
+    a, b = FootstepEnv(), FootstepEnv()
+    a.reset(seed=1)
+    b.reset(seed=1)
+    oa = a.step(np.array([5, -5, 2, 1, -1, 1.0]))
+    ob = b.step(np.array([1, -1, 1, 1, -1, 1.0]))
+    np.testing.assert_array_equal(oa[0], ob[0])
+    assert oa[1] == ob[1]
+
+
+def test_render_is_an_rgb_image():
+    env = FootstepEnv(obstacles=True, render_mode="rgb_array")
+    env.reset(seed=0)
+    env.step(np.ones(6))
+    frame = env.render()
+    assert frame.shape == (600, 600, 3) and frame.dtype == np.uint8
+    assert len(np.unique(frame.reshape(-1, 3), axis=0)) > 5  # something is drawn
