@@ -17,6 +17,22 @@ from typing import Sequence
 
 import numpy as np
 
+_POWERS = np.arange(6.0)
+_ZEROS = {1: (0.0, 0.0, 0.0), 2: (0.0, 0.0), 3: (0.0,)}
+# Monomial coefficients of the quintic on s in [0, 1] from (p0, v0, a0, p1, v1, a1) in s units.
+_NORMALISED_QUINTIC = np.array(
+    [
+        [1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0, 0.0, 0.0, 0.0],
+        [0.0, 0.0, 0.5, 0.0, 0.0, 0.0],
+        [-10.0, -6.0, -1.5, 10.0, -4.0, 0.5],
+        [15.0, 8.0, 1.5, -15.0, 7.0, -1.0],
+        [-6.0, -3.0, -0.5, 6.0, -3.0, 0.5],
+    ]
+)
+_VEL_FACTORS = np.arange(1.0, 6.0)  # d/dt t^k = k t^(k-1)
+_ACC_FACTORS = np.array([2.0, 6.0, 12.0, 20.0])  # d2/dt2 t^k = k (k-1) t^(k-2)
+
 # A knot: (time, position) or (time, position, velocity) or (time, position, velocity, acceleration).
 Knot = Sequence[float]
 
@@ -79,63 +95,98 @@ class PiecewiseQuintic:
     """
 
     def __init__(self, channels: Sequence[Sequence[Knot]]):
-        if len(channels) == 0:
-            raise ValueError("a spline needs at least one channel")
         n_channels = len(channels)
-        max_knots = max(len(knots) for knots in channels)
-        if max_knots < 2:
-            raise ValueError("every channel needs at least two knots")
-        # Knots padded to a rectangular array; padding repeats the last knot's time as +inf so
-        # that the segment search below never selects a padded segment.
-        data = np.zeros((n_channels, max_knots, 4))
-        data[:, :, 0] = np.inf
-        n_segments = np.empty(n_channels, dtype=int)
-        for c, knots in enumerate(channels):
-            if len(knots) < 2:
-                raise ValueError(f"channel {c} has {len(knots)} knot(s); at least two are needed")
-            for k, knot in enumerate(knots):
-                data[c, k, : len(knot)] = knot
-            n_segments[c] = len(knots) - 1
+        if n_channels == 0:
+            raise ValueError("a spline needs at least one channel")
+        counts = [len(knots) for knots in channels]
+        if min(counts) < 2:
+            raise ValueError(f"every channel needs at least two knots, got {counts}")
+        max_knots = max(counts)
+        # Knots padded to a rectangular (channels, knots, 4) array by repeating each channel's
+        # last knot; padded segments have zero length and are never selected.
+        rows = []
+        for knots in channels:
+            padded = [knot if len(knot) == 4 else tuple(knot) + _ZEROS[len(knot)] for knot in knots]
+            rows += padded
+            if len(padded) < max_knots:
+                rows += padded[-1:] * (max_knots - len(padded))
+        data = np.array(rows, dtype=float).reshape(n_channels, max_knots, 4)
+        if not np.isfinite(data).all():
+            raise ValueError("knot times, positions, velocities and accelerations must be finite")
+        n_segments = np.array(counts) - 1
         times = data[:, :, 0]
-        valid_seg = np.arange(max_knots - 1)[None, :] < n_segments[:, None]
-        durations = np.diff(times, axis=1)
-        if np.any(~(durations[valid_seg] > 0.0)):
+        durations = times[:, 1:] - times[:, :-1]
+        valid = np.arange(max_knots - 1)[None, :] < n_segments[:, None]
+        if not (durations[valid] > 0.0).all():
             raise ValueError("knot times must strictly increase within each channel")
-        if not np.all(np.isfinite(data[:, :, 1:][np.isfinite(times)])):
-            raise ValueError("knot positions, velocities and accelerations must be finite")
-        start, end = data[:, :-1], data[:, 1:]
-        safe_durations = np.where(valid_seg, durations, 1.0)
-        self.coefficients = quintic_coefficients(
-            start[..., 1], start[..., 2], start[..., 3], end[..., 1], end[..., 2], end[..., 3], safe_durations
-        )  # (channels, max_knots - 1, 6)
-        self.times = times  # (channels, max_knots), +inf padded
+        durations[~valid] = 1.0  # padded segments: any positive length, never evaluated
+        # Segment coefficients through normalised time s = tau / T: b = A @ [p0, v0 T, a0 T^2,
+        # p1, v1 T, a1 T^2], then c_k = b_k / T^k (one matrix product for every segment).
+        scale = durations[..., None] ** _POWERS[:3]  # (channels, segments, 3): 1, T, T^2
+        boundary = np.concatenate([data[:, :-1, 1:] * scale, data[:, 1:, 1:] * scale], axis=2)
+        coefficients = (boundary @ _NORMALISED_QUINTIC.T) / durations[..., None] ** _POWERS  # (channels, segments, 6)
+        n_seg_max = max_knots - 1
+        self.times = times  # (channels, max_knots); padded with each channel's last knot time
         self.n_segments = n_segments
-        self._channel_index = np.arange(n_channels)[:, None]
-        # Inner breakpoints (exclude first and last knot) for the segment search; padding = +inf.
-        inner = np.full((n_channels, max(max_knots - 2, 1)), np.inf)
-        for c in range(n_channels):
-            inner[c, : n_segments[c] - 1] = times[c, 1 : n_segments[c]]
-        self._inner = inner
+        # Flat, power-major coefficient table: column = channel * n_seg_max + segment.
+        self._coefficients = np.ascontiguousarray(coefficients.reshape(-1, 6).T)  # (6, channels * n_seg_max)
+        self._segment_start = times[:, :-1].ravel()
+        # All channels' breakpoints in one sorted array: channel c's are shifted by c * span, so
+        # one searchsorted locates the segment of every (channel, time) pair at once.
+        t_min, t_max = float(times.min()), float(times.max())
+        self._span = 2.0 * (t_max - t_min) + 1.0
+        self._t_min = t_min
+        self._offsets = (np.arange(n_channels) * self._span)[:, None]
+        self._breaks = (times[:, 1:] + self._offsets).ravel()
+        first_column = (np.arange(n_channels) * n_seg_max)[:, None]
+        self._first_column = first_column
+        self._last_column = first_column + (n_segments - 1)[:, None]
 
     @property
     def n_channels(self) -> int:
         return self.times.shape[0]
 
+    @property
+    def coefficients(self) -> np.ndarray:
+        """``(channels, segments, 6)`` polynomial coefficients (local time from each segment start)."""
+        return self._coefficients.T.reshape(self.n_channels, -1, 6)
+
     def start_time(self) -> np.ndarray:
         return self.times[:, 0].copy()
 
     def end_time(self) -> np.ndarray:
-        return self.times[self._channel_index[:, 0], self.n_segments].copy()
+        return self.times[:, -1].copy()
+
+    def _locate(self, t: np.ndarray):
+        # Clamp the query into the band where the channel shift is unambiguous (times beyond a
+        # channel's knots just extrapolate its first / last segment).  Within the band a time
+        # before a channel's first breakpoint counts exactly the earlier channels' breakpoints,
+        # i.e. lands on the channel's first column, so only the upper cap is needed.
+        band = 0.5 * (self._span - 1.0)
+        t_query = np.minimum(np.maximum(t, self._t_min - band), self._t_min + self._span - band)
+        q = t_query[None, :] + self._offsets
+        column = np.searchsorted(self._breaks, q.ravel(), side="right").reshape(q.shape)
+        np.minimum(column, self._last_column, out=column)
+        tau = t[None, :] - np.take(self._segment_start, column)
+        return np.take(self._coefficients, column, axis=1), tau  # (6, channels, n), (channels, n)
+
+    def positions(self, t) -> np.ndarray:
+        """Positions only, ``(channels, len(t))`` — the cheap path for sampling control ticks."""
+        c, tau = self._locate(np.atleast_1d(np.asarray(t, dtype=float)))
+        return c[0] + tau * (c[1] + tau * (c[2] + tau * (c[3] + tau * (c[4] + tau * c[5]))))
 
     def evaluate(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position, velocity, acceleration of every channel at times ``t``: each ``(channels, len(t))``."""
-        t = np.atleast_1d(np.asarray(t, dtype=float))
-        segment = (t[None, :, None] >= self._inner[:, None, :]).sum(axis=2)  # (channels, n)
-        coefficients = self.coefficients[self._channel_index, segment]  # (channels, n, 6)
-        tau = t[None, :] - self.times[self._channel_index, segment]
-        return evaluate_polynomial(coefficients, tau)
+        c, tau = self._locate(np.atleast_1d(np.asarray(t, dtype=float)))
+        return evaluate_polynomial(np.moveaxis(c, 0, -1), tau)
 
     def state(self, t: float) -> np.ndarray:
         """``(channels, 3)``: position, velocity, acceleration of every channel at one time."""
-        pos, vel, acc = self.evaluate(np.array([t]))
-        return np.stack([pos[:, 0], vel[:, 0], acc[:, 0]], axis=1)
+        c, tau = self._locate(np.array([float(t)]))
+        powers = tau ** _POWERS  # (channels, 6): tau^0 .. tau^5
+        out = np.empty((c.shape[1], 3))
+        c = c[:, :, 0].T  # (channels, 6)
+        out[:, 0] = (c * powers).sum(axis=1)
+        out[:, 1] = (c[:, 1:] * _VEL_FACTORS * powers[:, :5]).sum(axis=1)
+        out[:, 2] = (c[:, 2:] * _ACC_FACTORS * powers[:, :4]).sum(axis=1)
+        return out

@@ -1,0 +1,591 @@
+"""The quintic walk engine: footstep (or velocity) orders → leg joint trajectories.
+
+Behaviour follows the Bit-Bots / Rhoban *Quintic Walk* (thesis 3.3, ``shared/FACTS.md``);
+the implementation is our own, pure numpy.
+
+* The walk phase runs over [0, 1) per double step; phase < 0.5 is left support, so the right
+  foot flies first (``DoubleStep.first``), then the left foot.
+* Each half step starts with double support (``double_support_ratio`` of the half period),
+  then single support.  The flying foot holds x/y/yaw through double support, lifts to
+  ``foot_rise`` at ``foot_apex_phase`` of single support and is put down on the target at
+  ``foot_put_down_phase``.  The put-down target always comes from
+  :meth:`FootstepGeometry.landing` (clipping and foot–foot interference live there only).
+* The trunk follows splines towards "apex" points that are shifted in time by
+  ``trunk_phase``: laterally it swings towards the support foot by ``trunk_swing`` × half the
+  lateral foot offset; forward it keeps pace with the feet; its height is ``trunk_height``
+  over the support foot and dips by ``trunk_z_movement`` while the weight moves between the
+  feet; pitch = ``trunk_pitch`` + coefficients × step x and |step yaw|; yaw = mean of the feet.
+* Splines live in the support-foot frame and are rebuilt at every half-step boundary in the new
+  support frame, starting from the previous trunk spline's position, velocity and
+  acceleration (C2 hand-over).  Feet start and end every half step at rest, so they are C2 too.
+* States: IDLE → START_MOVEMENT (a trunk-only half cycle) → START_STEP → WALKING;
+  STOP_STEP → STOP_MOVEMENT → IDLE.
+
+Timing.  The engine runs at ``control_dt``.  A double step lasts exactly
+``n = round(1 / (freq · control_dt))`` ticks: the walk period is quantised to a whole number of
+ticks, so the engine's effective frequency is ``1 / (n · control_dt)`` (``engine.freq``; for the
+defaults at 500 Hz, 255 ticks = 0.510 s vs 1/freq = 0.50935 s, −0.13 %).  The phase advances
+``control_dt · engine.freq`` per tick and returns to exactly 0 after each double step, so
+durations never drift.  The half-step boundary sits at ``n/2`` ticks (between two ticks when
+``n`` is odd — splines are evaluated at exact times, so nothing is lost).  The start movement
+takes ``ceil(n/2)`` ticks so every call returns whole ticks.
+
+Tick convention: a trajectory's tick ``k`` holds the targets for the end of the k-th control
+interval, so the last tick of a double step is the put-down instant of the second foot.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from enum import IntEnum
+
+import numpy as np
+
+from footsim.geometry import Pose2D, mean_pose, wrap_angles
+from footsim.walk.footsteps import DoubleStep, FeetState, Footstep, FootstepGeometry, Side
+from footsim.walk.ik import LEG_JOINT_NAMES, LegGeometry, apply_joint_limits, solve_leg_ik
+from footsim.walk.params import WalkParams
+from footsim.walk.spline import PiecewiseQuintic
+
+__all__ = ["LEG_JOINT_NAMES", "QuinticWalk", "WalkState", "WalkTrajectory"]
+
+
+class WalkState(IntEnum):
+    IDLE = 0
+    START_MOVEMENT = 1
+    START_STEP = 2
+    WALKING = 3
+    STOP_STEP = 4
+    STOP_MOVEMENT = 5
+
+
+# Spline channel order, for feet and trunk alike.
+X, Y, Z, ROLL, PITCH, YAW = range(6)
+
+
+@dataclass(frozen=True)
+class WalkTrajectory:
+    """Every control tick of one engine call (a double step, possibly with its start; or a stop).
+
+    Poses are ``(x, y, z, roll, pitch, yaw)`` of the sole frames and the trunk (base) frame in
+    the engine's odometry frame (the frame the feet were placed in at :meth:`QuinticWalk.reset`;
+    z = 0 is the ground), yaw wrapped to (−π, π].
+    """
+
+    dt: float
+    t: np.ndarray  # (n,) engine time at each tick [s]
+    phase: np.ndarray  # (n,) walk phase in [0, 1) at each tick
+    support: np.ndarray  # (n,) bool: True = left support (phase < 0.5)
+    state: np.ndarray  # (n,) WalkState of the half step each tick belongs to
+    joint_targets: np.ndarray  # (n, 12) radians, LEG_JOINT_NAMES order
+    left_foot: np.ndarray  # (n, 6)
+    right_foot: np.ndarray  # (n, 6)
+    trunk: np.ndarray  # (n, 6)
+    reachable: np.ndarray  # (n,) bool: IK reached both feet within the joint limits
+    executed: DoubleStep | None  # the double step actually placed (clipped / interference); None for a stop
+    feet: FeetState  # planar feet after the call
+    interfered: int = 0  # footsteps shortened by foot–foot interference
+
+    def __len__(self) -> int:
+        return int(self.t.shape[0])
+
+    @property
+    def duration(self) -> float:
+        return len(self) * self.dt
+
+
+@dataclass
+class _HalfStep:
+    """One half step's plan: everything needed to build its splines."""
+
+    kind: WalkState
+    support: Side
+    support_pose: Pose2D  # support sole in the odometry frame
+    duration: float
+    last: Pose2D  # flying foot at the start, in the support frame
+    landing: Pose2D  # flying foot at put-down, in the support frame
+    tick_times: np.ndarray  # local times of this half step's ticks, in (0, duration]
+    phase_start: float  # walk phase at local time 0
+    phase_span: float  # phase advanced over `duration`
+
+
+def _transform_trunk_state(state: np.ndarray, frame: Pose2D) -> np.ndarray:
+    """Re-express a trunk (6, 3) pos/vel/acc state in ``frame`` (a planar pose in the old frame).
+
+    The frames are fixed relative to each other, so velocities and accelerations just rotate;
+    rpy under a rotation about z only changes yaw (Rz(−θ)·Rz(y)Ry(p)Rx(r) = Rz(y−θ)Ry(p)Rx(r)).
+    """
+    c, s = math.cos(frame.theta), math.sin(frame.theta)
+    out = state.copy()
+    dx = state[X].copy()
+    dy = state[Y].copy()
+    dx[0] -= frame.x
+    dy[0] -= frame.y
+    out[X] = c * dx + s * dy
+    out[Y] = -s * dx + c * dy
+    out[YAW, 0] = state[YAW, 0] - frame.theta
+    return out
+
+
+def _rotation_cm(roll: np.ndarray, pitch: np.ndarray, yaw: np.ndarray) -> np.ndarray:
+    """``Rz(yaw) Ry(pitch) Rx(roll)`` component-major: ``(3, 3, n)``."""
+    cr, sr, cp, sp, cy, sy = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw)
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
+
+
+def _constant_knots(value: float, duration: float) -> list:
+    return [(0.0, value), (duration, value)]
+
+
+class QuinticWalk:
+    """Quintic-spline walk engine with analytic leg IK.  See the module docstring."""
+
+    def __init__(
+        self,
+        params: WalkParams,
+        geometry: FootstepGeometry,
+        leg: LegGeometry = LegGeometry(),
+        control_dt: float = 1.0 / 500.0,
+        joint_limits=None,
+    ):
+        if not (math.isfinite(control_dt) and control_dt > 0):
+            raise ValueError(f"control_dt must be a positive number, got {control_dt!r}")
+        if abs(geometry.foot_distance - params.foot_distance) > 1e-9:
+            raise ValueError(
+                f"WalkParams.foot_distance ({params.foot_distance}) and FootstepGeometry.foot_distance "
+                f"({geometry.foot_distance}) differ; build the geometry with the walk's foot distance"
+            )
+        if params.foot_apex_phase >= params.foot_put_down_phase:
+            raise ValueError(
+                f"WalkParams.foot_apex_phase ({params.foot_apex_phase}) must come before "
+                f"foot_put_down_phase ({params.foot_put_down_phase})"
+            )
+        self.params = params
+        self.geometry = geometry
+        self.leg = leg
+        self.control_dt = float(control_dt)
+        n = int(round(1.0 / (params.freq * control_dt)))
+        if n < 4:
+            raise ValueError(f"control_dt {control_dt} is too coarse for freq {params.freq}: {n} ticks per double step")
+        self.ticks_per_double_step = n
+        self.double_step_duration = n * self.control_dt
+        self.freq = 1.0 / self.double_step_duration  # effective (tick-quantised) frequency
+        self.half_period = 0.5 * self.double_step_duration
+        self.start_ticks = (n + 1) // 2
+        if joint_limits is None:
+            self._limits = None
+        else:
+            lim = np.asarray(joint_limits, dtype=float)
+            if lim.shape != (12, 2) or not np.all(lim[:, 0] <= lim[:, 1]):
+                raise ValueError("joint_limits must be (12, 2) [lower, upper] in LEG_JOINT_NAMES order")
+            self._limits = lim
+        self.reset()
+
+    # --- state ---------------------------------------------------------------------------
+
+    def reset(self, pose: Pose2D = Pose2D()) -> None:
+        """Stand still (IDLE) with the feet at rest around ``pose`` (the navigation frame)."""
+        self._state = WalkState.IDLE
+        self._tick = 0
+        self._feet = self.geometry.initial_feet(pose)
+        # The trunk state is always kept in the frame of the next half step's support foot; the
+        # next half step from IDLE is the start movement, in right support.
+        self._trunk = self._standing_trunk_state(Side.RIGHT)
+
+    @property
+    def state(self) -> WalkState:
+        return self._state
+
+    @property
+    def feet(self) -> FeetState:
+        return self._feet
+
+    @property
+    def time(self) -> float:
+        return self._tick * self.control_dt
+
+    @property
+    def phase(self) -> float:
+        """Calls always end on a double-step boundary, where the phase is 0."""
+        return 0.0
+
+    # --- orders --------------------------------------------------------------------------
+
+    def footsteps_from_velocity(self, vx: float, vy: float, omega: float) -> DoubleStep:
+        """The double step a velocity order asks for.
+
+        Per step: ``v / (2 · freq) · multiplier`` (``freq`` = the engine's effective frequency),
+        clipped to the step limits.  Forward steps go on both feet.  Lateral steps and turns go
+        only on the step whose flying foot is on the side of the motion (the outward step); the
+        other foot returns to its resting pose (y = 0, θ = 0), as in the original engine, so
+        the feet never cross or toe in.  Consequently the realised lateral speed and turn rate
+        are half the order times the multiplier (set ``y_/yaw_speed_multiplier`` = 2 to track
+        them one-to-one).
+        """
+        values = (vx, vy, omega)
+        if not all(isinstance(v, (int, float, np.floating, np.integer)) and math.isfinite(v) for v in values):
+            raise ValueError(f"velocity order must be finite numbers, got {values!r}")
+        p = self.params
+        scale = 1.0 / (2.0 * self.freq)
+        x, y, theta = self.geometry.limits.clip(
+            vx * scale * p.x_speed_multiplier, vy * scale * p.y_speed_multiplier, omega * scale * p.yaw_speed_multiplier
+        )
+        right = Footstep(x, min(y, 0.0), min(theta, 0.0))  # right foot flies first
+        left = Footstep(x, max(y, 0.0), max(theta, 0.0))
+        return DoubleStep(right, left)
+
+    def velocity_double_step(self, vx: float, vy: float, omega: float) -> WalkTrajectory:
+        return self.double_step(self.footsteps_from_velocity(vx, vy, omega))
+
+    def double_step(self, double_step: DoubleStep) -> WalkTrajectory:
+        """All control ticks of one double step (preceded by the start movement when IDLE)."""
+        values = double_step.as_array()
+        if not np.all(np.isfinite(values)):
+            raise ValueError(f"double step contains NaN or inf: {values.tolist()}")
+        plans = []
+        feet = self._feet
+        if self._state == WalkState.IDLE:
+            # Trunk-only half cycle in right support (phase 0.5 → 1), feet still.
+            duration = self.start_ticks * self.control_dt
+            left_in_right = feet.right.relative(feet.left)
+            plans.append(self._plan(WalkState.START_MOVEMENT, Side.RIGHT, feet, left_in_right, left_in_right, duration, 0.5, 0.5))
+            first_kind = WalkState.START_STEP
+        else:
+            first_kind = WalkState.WALKING
+        executed = []
+        interfered = 0
+        half_plans = []
+        for i, (flying, step) in enumerate(double_step.steps()):
+            support = flying.other
+            landing, done, hit = self.geometry.landing(flying, step)
+            executed.append(done)
+            interfered += int(hit)
+            last = feet.foot(support).relative(feet.foot(flying))
+            kind = first_kind if i == 0 else WalkState.WALKING
+            half_plans.append((kind, support, feet, last, landing, 0.5 * i))
+            feet = feet.with_foot(flying, feet.foot(support).compose(landing))
+        plans += self._half_step_plans(half_plans)
+        trajectory = self._run(plans, DoubleStep(executed[0], executed[1]), feet, interfered)
+        self._state = WalkState.WALKING
+        return trajectory
+
+    def stop(self) -> WalkTrajectory:
+        """Stop step (right foot back beside the left) and stop movement, back to IDLE.
+
+        Returns an empty trajectory when already standing.
+        """
+        if self._state == WalkState.IDLE:
+            return self._empty_trajectory()
+        feet = self._feet
+        landing, _, _ = self.geometry.landing(Side.RIGHT, Footstep())
+        last = feet.left.relative(feet.right)
+        after = feet.with_foot(Side.RIGHT, feet.left.compose(landing))
+        left_in_right = after.right.relative(after.left)
+        plans = self._half_step_plans(
+            [
+                (WalkState.STOP_STEP, Side.LEFT, feet, last, landing, 0.0),
+                (WalkState.STOP_MOVEMENT, Side.RIGHT, after, left_in_right, left_in_right, 0.5),
+            ]
+        )
+        trajectory = self._run(plans, None, after, 0)
+        self._state = WalkState.IDLE
+        return trajectory
+
+    def standing_joint_targets(self) -> np.ndarray:
+        """The 12 joint angles (LEG_JOINT_NAMES order) of the standing, walk-ready pose."""
+        trunk = self._standing_trunk_state(Side.LEFT)[:, :1]  # (6, 1) in the left sole frame
+        right = np.zeros((6, 1))
+        right[Y] = -self.params.foot_distance
+        feet_local = {Side.LEFT: np.zeros((6, 1)), Side.RIGHT: right}
+        q, _ = self._leg_joints(trunk, feet_local[Side.LEFT], feet_local[Side.RIGHT])
+        return q[0]
+
+    # --- planning ------------------------------------------------------------------------
+
+    def _plan(self, kind, support, feet, last, landing, duration, phase_start, phase_span) -> _HalfStep:
+        n_ticks = int(round(duration / self.control_dt))
+        return _HalfStep(
+            kind=kind,
+            support=support,
+            support_pose=feet.foot(support),
+            duration=duration,
+            last=last,
+            landing=landing,
+            tick_times=np.arange(1, n_ticks + 1) * self.control_dt,
+            phase_start=phase_start,
+            phase_span=phase_span,
+        )
+
+    def _half_step_plans(self, halves) -> list[_HalfStep]:
+        """Two half steps filling exactly one double step (n ticks)."""
+        n = self.ticks_per_double_step
+        dt = self.control_dt
+        plans = []
+        for i, (kind, support, feet, last, landing, phase_start) in enumerate(halves):
+            # Ticks k = 1..n of the double step; those at t <= T/2 belong to the first half.
+            k = np.arange(1, n + 1)
+            times = k * dt
+            in_half = times <= self.half_period + 1e-12 if i == 0 else times > self.half_period + 1e-12
+            local = times[in_half] - (0.0 if i == 0 else self.half_period)
+            plans.append(
+                _HalfStep(kind, support, feet.foot(support), self.half_period, last, landing, local, phase_start, 0.5)
+            )
+        return plans
+
+    # --- splines -------------------------------------------------------------------------
+
+    def _standing_trunk_state(self, support: Side) -> np.ndarray:
+        """Trunk (6, 3) pos/vel/acc standing between feet at rest, in ``support``'s frame."""
+        other = Pose2D(0.0, support.other.sign * self.params.foot_distance, 0.0)
+        return self._standing_trunk_between(Pose2D(), other)
+
+    def _standing_trunk_between(self, support: Pose2D, other: Pose2D) -> np.ndarray:
+        p = self.params
+        mid = mean_pose(support, other)
+        x, y = mid.transform_point(p.trunk_x_offset, p.trunk_y_offset)
+        state = np.zeros((6, 3))
+        state[:, 0] = (x, y, p.trunk_height, 0.0, p.trunk_pitch, mid.theta)
+        return state
+
+    def _trunk_apexes(self, last: Pose2D, landing: Pose2D, swing: float):
+        """Trunk targets of a walking half step in the support frame.
+
+        Returns ``(at_support, at_next)``, each a (6, 2) array of (position, velocity) per
+        channel: the apex over the support foot (time t1) and over the next support foot (t1 +
+        half period).
+        """
+        p = self.params
+        half = self.half_period
+        period = 2.0 * half
+        pitch = p.trunk_pitch + p.trunk_pitch_p_coef_forward * landing.x + p.trunk_pitch_p_coef_turn * abs(landing.theta)
+        mid_y = 0.5 * landing.y
+        yaw_rate = (landing.theta - last.theta) / period
+        at_support = np.array(
+            [
+                (0.5 * landing.x + p.trunk_x_offset, (landing.x - last.x) / period),
+                (p.trunk_y_offset + mid_y * (1.0 - swing), 0.0),
+                (p.trunk_height, 0.0),
+                (0.0, 0.0),
+                (pitch, 0.0),
+                (0.5 * (last.theta + landing.theta), yaw_rate),
+            ]
+        )
+        at_next = np.array(
+            [
+                (landing.x + p.trunk_x_offset, landing.x / half),
+                (p.trunk_y_offset + mid_y * (1.0 + swing), 0.0),
+                (p.trunk_height, 0.0),
+                (0.0, 0.0),
+                (pitch, 0.0),
+                (landing.theta, yaw_rate),
+            ]
+        )
+        return at_support, at_next
+
+    def _apex_time(self) -> float:
+        """t1: when the trunk is at its apex over the support foot, from the half step's start."""
+        p = self.params
+        half = self.half_period
+        time_shift = -0.5 * half + 0.5 * p.double_support_ratio * half + p.trunk_phase * half
+        return half + time_shift
+
+    def _trunk_knots(self, plan: _HalfStep, state: np.ndarray, next_plan: _HalfStep | None) -> list:
+        """Knots of the six trunk channels (support frame), starting from ``state`` (6, 3)."""
+        p = self.params
+        half = self.half_period
+        min_gap = 0.02 * half  # knots closer than this to t = 0 would make needlessly stiff segments
+        start = [(0.0, state[c, 0], state[c, 1], state[c, 2]) for c in range(6)]
+        t1 = self._apex_time()
+
+        if plan.kind == WalkState.STOP_MOVEMENT:
+            target = self._standing_trunk_between(Pose2D(), plan.landing)
+            return [[start[c], (plan.duration, target[c, 0])] for c in range(6)]
+
+        if plan.kind == WalkState.START_MOVEMENT:
+            # Head for the apex the start step will aim at (over the left foot, with the first-step
+            # swing gain), expressed in this right-support frame; reached t1 into the start step.
+            assert next_plan is not None
+            at_support, _ = self._trunk_apexes(
+                next_plan.last, next_plan.landing, p.trunk_swing * p.first_step_swing_factor
+            )
+            target = np.zeros((6, 3))
+            target[:, :2] = at_support
+            target = _transform_trunk_state(target, plan.landing.inverse())
+            t_target = plan.duration + t1 if t1 > min_gap else plan.duration + t1 + half
+            return [[start[c], (t_target, target[c, 0], target[c, 1])] for c in range(6)]
+
+        swing = p.trunk_swing * (p.first_step_swing_factor if plan.kind == WalkState.START_STEP else 1.0)
+        at_support, at_next = self._trunk_apexes(plan.last, plan.landing, swing)
+        if plan.kind == WalkState.STOP_STEP:
+            # Come to rest standing between the feet instead of swinging over to the next foot.
+            at_next = np.zeros((6, 2))
+            at_next[:, 0] = self._standing_trunk_between(Pose2D(), plan.landing)[:, 0]
+        t2 = t1 + half
+        channels = []
+        for c in range(6):
+            knots = [start[c]]
+            if c == Z and plan.kind != WalkState.STOP_STEP:
+                dip = p.trunk_height - p.trunk_z_movement
+                for t, value in ((t1 - 0.5 * half, dip), (t1, p.trunk_height), (t1 + 0.5 * half, dip)):
+                    if t > min_gap:
+                        knots.append((t, value))
+            elif t1 > min_gap:
+                knots.append((t1, at_support[c, 0], at_support[c, 1]))
+            knots.append((t2, at_next[c, 0], at_next[c, 1]))
+            channels.append(knots)
+        return channels
+
+    def _foot_knots(self, plan: _HalfStep) -> list:
+        """Knots of the flying foot's six channels (support frame)."""
+        p = self.params
+        last, landing, half = plan.last, plan.landing, plan.duration
+        if plan.kind in (WalkState.START_MOVEMENT, WalkState.STOP_MOVEMENT):
+            values = (last.x, last.y, 0.0, 0.0, 0.0, last.theta)
+            return [_constant_knots(v, half) for v in values]
+        double_support = p.double_support_ratio * half
+        single_support = half - double_support
+        lift = double_support > 1e-9  # hold through double support only if it has a length
+        put_down = double_support + single_support * p.foot_put_down_phase
+        apex = double_support + single_support * p.foot_apex_phase
+        settled = put_down < half - 1e-9
+
+        def planar(start: float, end: float) -> list:
+            knots = [(0.0, start)]
+            if lift:
+                knots.append((double_support, start))
+            knots.append((put_down, end))
+            if settled:
+                knots.append((half, end))
+            return knots
+
+        z = [(0.0, 0.0)]
+        if lift:
+            z.append((double_support, 0.0))
+        z += [(apex, p.foot_rise), (put_down, 0.0)]
+        if settled:
+            z.append((half, 0.0))
+        return [
+            planar(last.x, landing.x),
+            planar(last.y, landing.y),
+            z,
+            _constant_knots(0.0, half),
+            _constant_knots(0.0, half),
+            planar(last.theta, landing.theta),
+        ]
+
+    # --- evaluation ----------------------------------------------------------------------
+
+    def _run(self, plans: list[_HalfStep], executed, feet_after: FeetState, interfered: int) -> WalkTrajectory:
+        trunk_state = self._trunk
+        parts = []
+        for i, plan in enumerate(plans):
+            next_plan = plans[i + 1] if i + 1 < len(plans) else None
+            # One 12-channel spline per half step: flying foot (0-5) and trunk (6-11).
+            spline = PiecewiseQuintic(self._foot_knots(plan) + self._trunk_knots(plan, trunk_state, next_plan))
+            sampled = spline.positions(plan.tick_times)
+            parts.append((plan, sampled[:6], sampled[6:]))
+            # C2 hand-over: the trunk state at the exact end of the half step, in the next
+            # support frame (the flying foot's landing pose).
+            trunk_state = _transform_trunk_state(spline.state(plan.duration)[6:], plan.landing)
+        self._trunk = trunk_state
+        self._feet = feet_after
+        self._tick += sum(len(plan.tick_times) for plan, _, _ in parts)
+        return self._assemble(parts, executed, feet_after, interfered)
+
+    def _leg_joints(self, trunk: np.ndarray, left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """IK for both legs in one batch.  ``trunk``, ``left``, ``right``: (6, n) poses in a common frame."""
+        n = trunk.shape[1]
+        trunk_rot = _rotation_cm(trunk[ROLL], trunk[PITCH], trunk[YAW])  # (3, 3, n)
+        feet = np.concatenate([left, right], axis=1)  # both legs side by side: (6, 2n)
+        Rt = np.concatenate([trunk_rot, trunk_rot], axis=2)
+        d = feet[:3] - np.concatenate([trunk[:3], trunk[:3]], axis=1)
+        # Sole relative to the trunk: p = Rt^T d, R = Rt^T Rf.
+        p = np.einsum("jin,jn->in", Rt, d)
+        if feet[ROLL].any() or feet[PITCH].any():
+            R = np.einsum("jin,jkn->ikn", Rt, _rotation_cm(feet[ROLL], feet[PITCH], feet[YAW]))
+        else:  # the walk keeps the soles flat: Rf = Rz(yaw), so R = Rt^T Rz(yaw) in closed form
+            c, s = np.cos(feet[YAW]), np.sin(feet[YAW])
+            Rt0, Rt1 = Rt[0], Rt[1]  # rows of Rt = columns of Rt^T
+            R = np.empty((3, 3, 2 * n))
+            R[:, 0] = Rt0 * c + Rt1 * s
+            R[:, 1] = Rt1 * c - Rt0 * s
+            R[:, 2] = Rt[2]
+        sign = np.ones(2 * n)
+        sign[n:] = -1.0
+        q, reachable = solve_leg_ik(p, R, sign, self.leg)
+        joints = np.empty((n, 12))
+        joints[:, :6] = q[:, :n].T
+        joints[:, 6:] = q[:, n:].T
+        reachable = reachable[:n] & reachable[n:]
+        if self._limits is not None:
+            joints, reachable = apply_joint_limits(joints, reachable, self._limits)
+        return joints, reachable
+
+    def _assemble(self, parts, executed, feet_after: FeetState, interfered: int) -> WalkTrajectory:
+        dt = self.control_dt
+        left, right, trunk, support_poses, phases, states = [], [], [], [], [], []
+        for plan, foot, trunk_part in parts:
+            n = foot.shape[1]
+            support_local = np.zeros((6, n))
+            if plan.support is Side.LEFT:
+                left.append(support_local)
+                right.append(foot)
+            else:
+                left.append(foot)
+                right.append(support_local)
+            trunk.append(trunk_part)
+            support_poses.append(np.repeat(np.array(plan.support_pose)[:, None], n, axis=1))
+            phases.append(np.mod(plan.phase_start + plan.phase_span * plan.tick_times / plan.duration, 1.0))
+            states.append(np.full(n, int(plan.kind), dtype=np.int8))
+        # Local (support-frame) poses, stacked: 0 = left sole, 1 = right sole, 2 = trunk.
+        local = np.stack([np.concatenate(left, axis=1), np.concatenate(right, axis=1), np.concatenate(trunk, axis=1)])
+        joints, reachable = self._leg_joints(local[2], local[0], local[1])
+        # To the odometry frame: rotate about z by the support foot's heading and translate.
+        sx, sy, stheta = np.concatenate(support_poses, axis=1)
+        c, s = np.cos(stheta), np.sin(stheta)
+        world = local.copy()
+        world[:, X] = sx + c * local[:, X] - s * local[:, Y]
+        world[:, Y] = sy + s * local[:, X] + c * local[:, Y]
+        world[:, YAW] = wrap_angles(local[:, YAW] + stheta)
+        n_total = local.shape[2]
+        phase = np.concatenate(phases)
+        t = (self._tick - n_total + np.arange(1, n_total + 1)) * dt
+        return WalkTrajectory(
+            dt=dt,
+            t=t,
+            phase=phase,
+            support=phase < 0.5,
+            state=np.concatenate(states),
+            joint_targets=joints,
+            left_foot=world[0].T,
+            right_foot=world[1].T,
+            trunk=world[2].T,
+            reachable=reachable,
+            executed=executed,
+            feet=feet_after,
+            interfered=interfered,
+        )
+
+    def _empty_trajectory(self) -> WalkTrajectory:
+        empty6 = np.zeros((0, 6))
+        return WalkTrajectory(
+            dt=self.control_dt,
+            t=np.zeros(0),
+            phase=np.zeros(0),
+            support=np.zeros(0, dtype=bool),
+            state=np.zeros(0, dtype=np.int8),
+            joint_targets=np.zeros((0, 12)),
+            left_foot=empty6,
+            right_foot=empty6.copy(),
+            trunk=empty6.copy(),
+            reachable=np.zeros(0, dtype=bool),
+            executed=None,
+            feet=self._feet,
+        )
