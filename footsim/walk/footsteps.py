@@ -123,26 +123,27 @@ class FeetState:
         return mean_pose(self.left, self.right)
 
 
-def _rect_corners(x: float, y: float, theta: float, half_l: float, half_w: float):
+def _overlap_band_y(x: float, theta: float, half_l: float, half_w: float) -> tuple[float, float] | None:
+    """Lateral offsets y at which a foot at (x, y, theta) overlaps an identical foot at the origin.
+
+    Separating-axis theorem on the four box axes: on axis n the boxes overlap iff
+    |n·(x, y)| <= r_support(n) + r_flying(n), which bounds y linearly; the overlap set is the
+    intersection of those bands (an interval), or None when some axis separates for every y.
+    """
     c, s = math.cos(theta), math.sin(theta)
-    return [
-        (x + c * dx - s * dy, y + s * dx + c * dy)
-        for dx, dy in ((half_l, half_w), (-half_l, half_w), (-half_l, -half_w), (half_l, -half_w))
-    ]
-
-
-def _rects_overlap(a, b) -> bool:
-    """Separating-axis test for two convex quadrilaterals given by their corners."""
-    for poly in (a, b):
-        for i in range(4):
-            x1, y1 = poly[i]
-            x2, y2 = poly[(i + 1) % 4]
-            nx, ny = y1 - y2, x2 - x1
-            pa = [nx * px + ny * py for px, py in a]
-            pb = [nx * px + ny * py for px, py in b]
-            if max(pa) < min(pb) or max(pb) < min(pa):
-                return False
-    return True
+    lo, hi = -math.inf, math.inf
+    for nx, ny in ((1.0, 0.0), (0.0, 1.0), (c, s), (-s, c)):
+        reach = (half_l * abs(nx) + half_w * abs(ny)
+                 + half_l * abs(nx * c + ny * s) + half_w * abs(-nx * s + ny * c))
+        if abs(ny) < 1e-12:
+            if abs(nx * x) > reach:
+                return None
+            continue
+        a, b = (-reach - nx * x) / ny, (reach - nx * x) / ny
+        lo, hi = max(lo, min(a, b)), min(hi, max(a, b))
+        if lo > hi:
+            return None
+    return lo, hi
 
 
 @dataclass(frozen=True)
@@ -175,37 +176,30 @@ class FootstepGeometry:
         half = 0.5 * self.foot_distance
         return FeetState(pose.compose(Pose2D(0.0, half, 0.0)), pose.compose(Pose2D(0.0, -half, 0.0)))
 
+    def _band(self, x: float, theta: float) -> tuple[float, float] | None:
+        # Each plate grows by half the gap, so "overlap" means "closer than min_foot_gap".
+        return _overlap_band_y(x, theta, 0.5 * (self.foot_length + self.min_foot_gap),
+                               0.5 * (self.foot_width + self.min_foot_gap))
+
     def feet_interfere(self, x: float, y: float, theta: float) -> bool:
-        """Does a foot at (x, y, theta) relative to the other foot overlap it (with the gap)?"""
-        hl = 0.5 * self.foot_length + 0.5 * self.min_foot_gap
-        hw = 0.5 * self.foot_width + 0.5 * self.min_foot_gap
-        # Cheap exit on the support foot's lateral axis (the separating axis in the common case):
-        # the flying rectangle's half-extent along y is hl|sin θ| + hw|cos θ|.
-        if abs(y) - (hl * abs(math.sin(theta)) + hw * abs(math.cos(theta))) > hw:
-            return False
-        return _rects_overlap(_rect_corners(0.0, 0.0, 0.0, hl, hw), _rect_corners(x, y, theta, hl, hw))
+        """Does a foot at (x, y, theta) relative to the other foot come closer than the gap?"""
+        band = self._band(x, theta)
+        return band is not None and band[0] < y < band[1]
 
     def landing(self, flying: Side, step: Footstep) -> tuple[Pose2D, Footstep, bool]:
         """Where the flying foot lands relative to the support foot.
 
         Returns ``(landing pose in the support frame, the footstep actually executed, interfered)``.
-        The step is first clipped to the limits; if the foot would then overlap the support foot,
-        its lateral offset is backed off towards the resting pose (bisection) until it clears —
-        this is the foot–foot interference that makes inward steps shorter than commanded.
+        The step is first clipped to the limits; if the foot would then come closer to the support
+        foot than the gap, its lateral offset is backed off towards the resting pose to the edge
+        of the overlap band — the foot–foot interference that makes inward steps shorter.
         """
         x, y, theta = self.limits.clip(step.x, step.y, step.theta)
         rest_y = flying.sign * self.foot_distance
-        interfered = False
-        if self.feet_interfere(x, rest_y + y, theta):
-            interfered = True
-            lo, hi = 0.0, 1.0  # fraction of the commanded lateral offset; 0 is always clear
-            for _ in range(12):
-                mid = 0.5 * (lo + hi)
-                if self.feet_interfere(x, rest_y + mid * y, theta):
-                    hi = mid
-                else:
-                    lo = mid
-            y *= lo
+        band = self._band(x, theta)
+        interfered = band is not None and band[0] < rest_y + y < band[1]
+        if interfered:  # the resting side of the band is clear (checked at construction)
+            y = (band[1] if flying is Side.LEFT else band[0]) - rest_y
         return Pose2D(x, rest_y + y, theta), Footstep(x, y, theta), interfered
 
     def execute(self, feet: FeetState, double_step: DoubleStep):
