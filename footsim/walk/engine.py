@@ -358,33 +358,40 @@ class QuinticWalk:
         """Trunk targets of a walking half step in the support frame.
 
         Returns ``(at_support, at_next)``, each a (6, 2) array of (position, velocity) per
-        channel: the apex over the support foot (time t1) and over the next support foot (t1 +
-        half period).
+        channel (yaw is unused: it follows the feet): the apex over the support foot (time t1)
+        and over the next support foot (t1 + half period).  Laterally the trunk stops short of
+        each foot: it swings ``swing`` × half the lateral foot offset away from the middle.
+
+        The apex over the next foot is placed in that foot's own frame (offsets rotated by its
+        yaw), i.e. where the next rebuild will put its first apex if the foot spacing stays
+        the same; in turns this removes most of the retargeting jump at the hand-over.
         """
         p = self.params
         half = self.half_period
         period = 2.0 * half
         pitch = p.trunk_pitch + p.trunk_pitch_p_coef_forward * landing.x + p.trunk_pitch_p_coef_turn * abs(landing.theta)
-        mid_y = 0.5 * landing.y
-        yaw_rate = (landing.theta - last.theta) / period
+        half_offset_y = 0.5 * landing.y
         at_support = np.array(
             [
-                (0.5 * landing.x + p.trunk_x_offset, (landing.x - last.x) / period),
-                (p.trunk_y_offset + mid_y * (1.0 - swing), 0.0),
+                (p.trunk_x_offset, (landing.x - last.x) / period),
+                (p.trunk_y_offset + half_offset_y * (1.0 - swing), 0.0),
                 (p.trunk_height, 0.0),
                 (0.0, 0.0),
                 (pitch, 0.0),
-                (0.5 * (last.theta + landing.theta), yaw_rate),
+                (0.0, 0.0),
             ]
         )
+        c, s = math.cos(landing.theta), math.sin(landing.theta)
+        offset_x, offset_y = p.trunk_x_offset, p.trunk_y_offset - half_offset_y * (1.0 - swing)
+        speed = landing.x / half
         at_next = np.array(
             [
-                (landing.x + p.trunk_x_offset, landing.x / half),
-                (p.trunk_y_offset + mid_y * (1.0 + swing), 0.0),
+                (landing.x + c * offset_x - s * offset_y, c * speed),
+                (landing.y + s * offset_x + c * offset_y, s * speed),
                 (p.trunk_height, 0.0),
                 (0.0, 0.0),
                 (pitch, 0.0),
-                (landing.theta, yaw_rate),
+                (0.0, 0.0),
             ]
         )
         return at_support, at_next
@@ -396,8 +403,19 @@ class QuinticWalk:
         time_shift = -0.5 * half + 0.5 * p.double_support_ratio * half + p.trunk_phase * half
         return half + time_shift
 
-    def _trunk_knots(self, plan: _HalfStep, state: np.ndarray, next_plan: _HalfStep | None) -> list:
-        """Knots of the six trunk channels (support frame), starting from ``state`` (6, 3)."""
+    def _trunk_knots(self, plan: _HalfStep, state: np.ndarray, next_plan: _HalfStep | None, foot_yaw: list) -> list:
+        """Knots of the six trunk channels (support frame), starting from ``state`` (6, 3).
+
+        The trunk yaw is the mean of the two feet's yaws at every instant: half the flying
+        foot's yaw spline (the support foot has yaw 0 in its own frame).  Both feet are at rest
+        at every half-step boundary, so this hands over C2 like the other channels.
+        """
+        channels = self._trunk_translation_pitch_knots(plan, state, next_plan)
+        channels.append([(knot[0], 0.5 * knot[1]) for knot in foot_yaw])
+        return channels
+
+    def _trunk_translation_pitch_knots(self, plan: _HalfStep, state: np.ndarray, next_plan: _HalfStep | None) -> list:
+        """Knots of the trunk's x, y, z, roll and pitch channels."""
         p = self.params
         half = self.half_period
         min_gap = 0.02 * half  # knots closer than this to t = 0 would make needlessly stiff segments
@@ -406,7 +424,7 @@ class QuinticWalk:
 
         if plan.kind == WalkState.STOP_MOVEMENT:
             target = self._standing_trunk_between(Pose2D(), plan.landing)
-            return [[start[c], (plan.duration, target[c, 0])] for c in range(6)]
+            return [[start[c], (plan.duration, target[c, 0])] for c in range(YAW)]
 
         if plan.kind == WalkState.START_MOVEMENT:
             # Head for the apex the start step will aim at (over the left foot, with the first-step
@@ -419,7 +437,7 @@ class QuinticWalk:
             target[:, :2] = at_support
             target = _transform_trunk_state(target, plan.landing.inverse())
             t_target = plan.duration + t1 if t1 > min_gap else plan.duration + t1 + half
-            return [[start[c], (t_target, target[c, 0], target[c, 1])] for c in range(6)]
+            return [[start[c], (t_target, target[c, 0], target[c, 1])] for c in range(YAW)]
 
         swing = p.trunk_swing * (p.first_step_swing_factor if plan.kind == WalkState.START_STEP else 1.0)
         at_support, at_next = self._trunk_apexes(plan.last, plan.landing, swing)
@@ -429,9 +447,11 @@ class QuinticWalk:
             at_next[:, 0] = self._standing_trunk_between(Pose2D(), plan.landing)[:, 0]
         t2 = t1 + half
         channels = []
-        for c in range(6):
+        for c in range(YAW):
             knots = [start[c]]
-            if c == Z and plan.kind != WalkState.STOP_STEP:
+            if c == PITCH:
+                pass  # a new pitch is reached over the whole horizon, not by t1: no violent nods
+            elif c == Z and plan.kind != WalkState.STOP_STEP:
                 dip = p.trunk_height - p.trunk_z_movement
                 for t, value in ((t1 - 0.5 * half, dip), (t1, p.trunk_height), (t1 + 0.5 * half, dip)):
                     if t > min_gap:
@@ -488,7 +508,8 @@ class QuinticWalk:
         for i, plan in enumerate(plans):
             next_plan = plans[i + 1] if i + 1 < len(plans) else None
             # One 12-channel spline per half step: flying foot (0-5) and trunk (6-11).
-            spline = PiecewiseQuintic(self._foot_knots(plan) + self._trunk_knots(plan, trunk_state, next_plan))
+            foot_knots = self._foot_knots(plan)
+            spline = PiecewiseQuintic(foot_knots + self._trunk_knots(plan, trunk_state, next_plan, foot_knots[YAW]))
             sampled = spline.positions(plan.tick_times)
             parts.append((plan, sampled[:6], sampled[6:]))
             # C2 hand-over: the trunk state at the exact end of the half step, in the next
