@@ -47,10 +47,17 @@ def load_preset(group: str, spec: str | Mapping | None) -> dict:
         base_name = data.get("name") if group in ("backend", "task", "robot") else None
         if base_name is not None and (conf_dir() / group / f"{base_name}.yaml").is_file():
             base = load_preset(group, base_name)
+        elif group == "backend":  # never lend one backend's options to another
+            base = {}
         else:
             base = load_preset(group, GROUP_DEFAULTS[group])
         return OmegaConf.to_container(OmegaConf.merge(base, data), resolve=True)
     raise TypeError(f"{group} must be a preset name or a mapping, got {type(spec).__name__}")
+
+
+def walk_preset_for(backend: str) -> str:
+    """The walk preset tuned for a backend (``conf/walk/<backend>.yaml``), else ``default``."""
+    return backend if (conf_dir() / "walk" / f"{backend}.yaml").is_file() else GROUP_DEFAULTS["walk"]
 
 
 def _number(cfg: Mapping, key: str, where: str) -> float:

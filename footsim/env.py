@@ -55,8 +55,11 @@ class FootstepEnv(gym.Env):
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         if task is None:
             task = "nav_obstacles" if obstacles else "nav"
+        backend_cfg = fconf.load_preset("backend", {"name": backend} if isinstance(backend, str) else backend)
+        if walk is None:  # the walk parameters tuned for this backend
+            walk = fconf.walk_preset_for(backend_cfg["name"])
         self.config = {
-            "backend": fconf.load_preset("backend", {"name": backend} if isinstance(backend, str) else backend),
+            "backend": backend_cfg,
             "task": fconf.load_preset("task", task),
             "noise": fconf.load_preset("noise", noise),
             "robot": fconf.load_preset("robot", robot),
