@@ -46,7 +46,7 @@ from footsim.geometry import Pose2D, mean_pose, wrap_angles
 from footsim.walk.footsteps import DoubleStep, FeetState, Footstep, FootstepGeometry, Side
 from footsim.walk.ik import LEG_JOINT_NAMES, LegGeometry, apply_joint_limits, solve_leg_ik
 from footsim.walk.params import WalkParams
-from footsim.walk.spline import PiecewiseQuintic
+from footsim.walk.spline import PiecewiseQuintic, knots_state
 
 __all__ = ["LEG_JOINT_NAMES", "QuinticWalk", "WalkState", "WalkTrajectory"]
 
@@ -60,8 +60,12 @@ class WalkState(IntEnum):
     STOP_MOVEMENT = 5
 
 
-# Spline channel order, for feet and trunk alike.
+# Pose channel order, for feet and trunk alike.
 X, Y, Z, ROLL, PITCH, YAW = range(6)
+# Channels that move and get splines: the soles stay flat (no roll/pitch) and the trunk never
+# rolls, so those channels are constant zero and are not evaluated.
+_FOOT_CHANNELS = [X, Y, Z, YAW]
+_TRUNK_CHANNELS = [X, Y, Z, PITCH, YAW]
 
 
 @dataclass(frozen=True)
@@ -404,7 +408,7 @@ class QuinticWalk:
         return half + time_shift
 
     def _trunk_knots(self, plan: _HalfStep, state: np.ndarray, next_plan: _HalfStep | None, foot_yaw: list) -> list:
-        """Knots of the six trunk channels (support frame), starting from ``state`` (6, 3).
+        """Knots of the trunk's x, y, z, pitch and yaw channels (support frame), from ``state`` (6, 3).
 
         The trunk yaw is the mean of the two feet's yaws at every instant: half the flying
         foot's yaw spline (the support foot has yaw 0 in its own frame).  Both feet are at rest
@@ -415,7 +419,7 @@ class QuinticWalk:
         return channels
 
     def _trunk_translation_pitch_knots(self, plan: _HalfStep, state: np.ndarray, next_plan: _HalfStep | None) -> list:
-        """Knots of the trunk's x, y, z, roll and pitch channels."""
+        """Knots of the trunk's x, y, z and pitch channels."""
         p = self.params
         half = self.half_period
         min_gap = 0.02 * half  # knots closer than this to t = 0 would make needlessly stiff segments
@@ -424,7 +428,7 @@ class QuinticWalk:
 
         if plan.kind == WalkState.STOP_MOVEMENT:
             target = self._standing_trunk_between(Pose2D(), plan.landing)
-            return [[start[c], (plan.duration, target[c, 0])] for c in range(YAW)]
+            return [[start[c], (plan.duration, target[c, 0])] for c in (X, Y, Z, PITCH)]
 
         if plan.kind == WalkState.START_MOVEMENT:
             # Head for the apex the start step will aim at (over the left foot, with the first-step
@@ -437,7 +441,7 @@ class QuinticWalk:
             target[:, :2] = at_support
             target = _transform_trunk_state(target, plan.landing.inverse())
             t_target = plan.duration + t1 if t1 > min_gap else plan.duration + t1 + half
-            return [[start[c], (t_target, target[c, 0], target[c, 1])] for c in range(YAW)]
+            return [[start[c], (t_target, target[c, 0], target[c, 1])] for c in (X, Y, Z, PITCH)]
 
         swing = p.trunk_swing * (p.first_step_swing_factor if plan.kind == WalkState.START_STEP else 1.0)
         at_support, at_next = self._trunk_apexes(plan.last, plan.landing, swing)
@@ -447,7 +451,7 @@ class QuinticWalk:
             at_next[:, 0] = self._standing_trunk_between(Pose2D(), plan.landing)[:, 0]
         t2 = t1 + half
         channels = []
-        for c in range(YAW):
+        for c in (X, Y, Z, PITCH):
             knots = [start[c]]
             if c == PITCH:
                 pass  # a new pitch is reached over the whole horizon, not by t1: no violent nods
@@ -463,12 +467,11 @@ class QuinticWalk:
         return channels
 
     def _foot_knots(self, plan: _HalfStep) -> list:
-        """Knots of the flying foot's six channels (support frame)."""
+        """Knots of the flying foot's x, y, z and yaw channels (support frame)."""
         p = self.params
         last, landing, half = plan.last, plan.landing, plan.duration
         if plan.kind in (WalkState.START_MOVEMENT, WalkState.STOP_MOVEMENT):
-            values = (last.x, last.y, 0.0, 0.0, 0.0, last.theta)
-            return [_constant_knots(v, half) for v in values]
+            return [_constant_knots(v, half) for v in (last.x, last.y, 0.0, last.theta)]
         double_support = p.double_support_ratio * half
         single_support = half - double_support
         lift = double_support > 1e-9  # hold through double support only if it has a length
@@ -491,33 +494,44 @@ class QuinticWalk:
         z += [(apex, p.foot_rise), (put_down, 0.0)]
         if settled:
             z.append((half, 0.0))
-        return [
-            planar(last.x, landing.x),
-            planar(last.y, landing.y),
-            z,
-            _constant_knots(0.0, half),
-            _constant_knots(0.0, half),
-            planar(last.theta, landing.theta),
-        ]
+        return [planar(last.x, landing.x), planar(last.y, landing.y), z, planar(last.theta, landing.theta)]
 
     # --- evaluation ----------------------------------------------------------------------
 
     def _run(self, plans: list[_HalfStep], executed, feet_after: FeetState, interfered: int) -> WalkTrajectory:
+        # Knots of every half step first: each trunk spline starts from the previous one's
+        # exact end state (C2 hand-over), computed from its knots in plain floats.  Then one
+        # spline holds every channel of every half step and is sampled in a single call, each
+        # half step's channels at its own tick times.
         trunk_state = self._trunk
-        parts = []
+        channels = []
         for i, plan in enumerate(plans):
             next_plan = plans[i + 1] if i + 1 < len(plans) else None
-            # One 12-channel spline per half step: flying foot (0-5) and trunk (6-11).
-            foot_knots = self._foot_knots(plan)
-            spline = PiecewiseQuintic(foot_knots + self._trunk_knots(plan, trunk_state, next_plan, foot_knots[YAW]))
-            sampled = spline.positions(plan.tick_times)
-            parts.append((plan, sampled[:6], sampled[6:]))
-            # C2 hand-over: the trunk state at the exact end of the half step, in the next
-            # support frame (the flying foot's landing pose).
-            trunk_state = _transform_trunk_state(spline.state(plan.duration)[6:], plan.landing)
+            foot = self._foot_knots(plan)
+            trunk = self._trunk_knots(plan, trunk_state, next_plan, foot[-1])
+            channels += foot + trunk
+            end_state = np.zeros((6, 3))
+            for c, knots in zip(_TRUNK_CHANNELS, trunk):
+                end_state[c] = knots_state(knots, plan.duration)
+            # ... expressed in the next support frame (the flying foot's landing pose).
+            trunk_state = _transform_trunk_state(end_state, plan.landing)
+        per_plan = len(_FOOT_CHANNELS) + len(_TRUNK_CHANNELS)
+        width = max(len(plan.tick_times) for plan in plans)
+        times = np.empty((len(plans), width))
+        for i, plan in enumerate(plans):
+            n = len(plan.tick_times)
+            times[i, :n] = plan.tick_times
+            times[i, n:] = plan.duration  # padding, discarded
+        sampled = PiecewiseQuintic(channels).positions(np.repeat(times, per_plan, axis=0))
+        n_foot = len(_FOOT_CHANNELS)
+        parts = []
+        for i, plan in enumerate(plans):
+            n = len(plan.tick_times)
+            rows = sampled[i * per_plan : (i + 1) * per_plan, :n]
+            parts.append((plan, rows[:n_foot], rows[n_foot:]))
         self._trunk = trunk_state
         self._feet = feet_after
-        self._tick += sum(len(plan.tick_times) for plan, _, _ in parts)
+        self._tick += sum(len(plan.tick_times) for plan in plans)
         return self._assemble(parts, executed, feet_after, interfered)
 
     def _leg_joints(self, trunk: np.ndarray, left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -551,39 +565,38 @@ class QuinticWalk:
 
     def _assemble(self, parts, executed, feet_after: FeetState, interfered: int) -> WalkTrajectory:
         dt = self.control_dt
-        left, right, trunk, support_poses, phases, states = [], [], [], [], [], []
+        n_total = sum(foot.shape[1] for _, foot, _ in parts)
+        # Local (support-frame) poses, stacked: 0 = left sole, 1 = right sole, 2 = trunk; the
+        # support sole is the zero pose of its own frame.
+        local = np.zeros((3, 6, n_total))
+        support_pose = np.empty((3, n_total))
+        phase = np.empty(n_total)
+        state = np.empty(n_total, dtype=np.int8)
+        begin = 0
         for plan, foot, trunk_part in parts:
-            n = foot.shape[1]
-            support_local = np.zeros((6, n))
-            if plan.support is Side.LEFT:
-                left.append(support_local)
-                right.append(foot)
-            else:
-                left.append(foot)
-                right.append(support_local)
-            trunk.append(trunk_part)
-            support_poses.append(np.repeat(np.array(plan.support_pose)[:, None], n, axis=1))
-            phases.append(np.mod(plan.phase_start + plan.phase_span * plan.tick_times / plan.duration, 1.0))
-            states.append(np.full(n, int(plan.kind), dtype=np.int8))
-        # Local (support-frame) poses, stacked: 0 = left sole, 1 = right sole, 2 = trunk.
-        local = np.stack([np.concatenate(left, axis=1), np.concatenate(right, axis=1), np.concatenate(trunk, axis=1)])
+            end = begin + foot.shape[1]
+            local[0 if plan.support is Side.RIGHT else 1, _FOOT_CHANNELS, begin:end] = foot
+            local[2, _TRUNK_CHANNELS, begin:end] = trunk_part
+            support_pose[:, begin:end] = np.array(plan.support_pose)[:, None]
+            phase[begin:end] = plan.phase_start + plan.phase_span / plan.duration * plan.tick_times
+            state[begin:end] = int(plan.kind)
+            begin = end
+        phase[phase >= 1.0] -= 1.0
         joints, reachable = self._leg_joints(local[2], local[0], local[1])
         # To the odometry frame: rotate about z by the support foot's heading and translate.
-        sx, sy, stheta = np.concatenate(support_poses, axis=1)
+        sx, sy, stheta = support_pose
         c, s = np.cos(stheta), np.sin(stheta)
         world = local.copy()
         world[:, X] = sx + c * local[:, X] - s * local[:, Y]
         world[:, Y] = sy + s * local[:, X] + c * local[:, Y]
         world[:, YAW] = wrap_angles(local[:, YAW] + stheta)
-        n_total = local.shape[2]
-        phase = np.concatenate(phases)
         t = (self._tick - n_total + np.arange(1, n_total + 1)) * dt
         return WalkTrajectory(
             dt=dt,
             t=t,
             phase=phase,
             support=phase < 0.5,
-            state=np.concatenate(states),
+            state=state,
             joint_targets=joints,
             left_foot=world[0].T,
             right_foot=world[1].T,

@@ -68,6 +68,39 @@ def evaluate_polynomial(coefficients: np.ndarray, tau: np.ndarray) -> tuple[np.n
     return pos, vel, acc
 
 
+def knots_state(knots: Sequence[Knot], t: float) -> tuple[float, float, float]:
+    """Position, velocity, acceleration at time ``t`` of the one channel through ``knots``.
+
+    Plain float arithmetic on the single segment containing ``t`` — much cheaper than building
+    a spline when only one state is needed (the walk engine's half-step hand-over).  Matches
+    :class:`PiecewiseQuintic` (including extrapolation of the first / last segment).
+    """
+    k = 1
+    while k < len(knots) - 1 and knots[k][0] <= t:
+        k += 1
+    a, b = knots[k - 1], knots[k]
+    t0, p0 = a[0], a[1]
+    v0 = a[2] if len(a) > 2 else 0.0
+    a0 = a[3] if len(a) > 3 else 0.0
+    T, p1 = b[0] - t0, b[1]
+    v1 = b[2] if len(b) > 2 else 0.0
+    a1 = b[3] if len(b) > 3 else 0.0
+    if not T > 0.0:
+        raise ValueError("knot times must strictly increase")
+    dp = p1 - p0
+    T2 = T * T
+    T3 = T2 * T
+    c2 = 0.5 * a0
+    c3 = (20.0 * dp - (8.0 * v1 + 12.0 * v0) * T - (3.0 * a0 - a1) * T2) / (2.0 * T3)
+    c4 = (-30.0 * dp + (14.0 * v1 + 16.0 * v0) * T + (3.0 * a0 - 2.0 * a1) * T2) / (2.0 * T3 * T)
+    c5 = (12.0 * dp - 6.0 * (v1 + v0) * T - (a0 - a1) * T2) / (2.0 * T3 * T2)
+    x = t - t0
+    pos = p0 + x * (v0 + x * (c2 + x * (c3 + x * (c4 + x * c5))))
+    vel = v0 + x * (2.0 * c2 + x * (3.0 * c3 + x * (4.0 * c4 + x * 5.0 * c5)))
+    acc = 2.0 * c2 + x * (6.0 * c3 + x * (12.0 * c4 + x * 20.0 * c5))
+    return pos, vel, acc
+
+
 @dataclass(frozen=True)
 class QuinticSegment:
     """One quintic on ``[0, duration]`` from end conditions (pos, vel, acc) at both ends."""
@@ -158,21 +191,30 @@ class PiecewiseQuintic:
         return self.times[:, -1].copy()
 
     def _locate(self, t: np.ndarray):
+        """``t`` is ``(n,)`` (same times for every channel) or ``(channels, n)`` (per channel)."""
         # Clamp the query into the band where the channel shift is unambiguous (times beyond a
         # channel's knots just extrapolate its first / last segment).  Within the band a time
         # before a channel's first breakpoint counts exactly the earlier channels' breakpoints,
         # i.e. lands on the channel's first column, so only the upper cap is needed.
         band = 0.5 * (self._span - 1.0)
         t_query = np.minimum(np.maximum(t, self._t_min - band), self._t_min + self._span - band)
-        q = t_query[None, :] + self._offsets
+        if t.ndim == 1:
+            t, t_query = t[None, :], t_query[None, :]
+        q = t_query + self._offsets
         column = np.searchsorted(self._breaks, q.ravel(), side="right").reshape(q.shape)
         np.minimum(column, self._last_column, out=column)
-        tau = t[None, :] - np.take(self._segment_start, column)
+        tau = t - np.take(self._segment_start, column)
         return np.take(self._coefficients, column, axis=1), tau  # (6, channels, n), (channels, n)
 
     def positions(self, t) -> np.ndarray:
-        """Positions only, ``(channels, len(t))`` — the cheap path for sampling control ticks."""
-        c, tau = self._locate(np.atleast_1d(np.asarray(t, dtype=float)))
+        """Positions only, ``(channels, n)`` — the cheap path for sampling control ticks.
+
+        ``t`` is ``(n,)`` for the same times on every channel or ``(channels, n)`` per channel.
+        """
+        t = np.asarray(t, dtype=float)
+        if t.ndim == 2 and t.shape[0] != self.n_channels:
+            raise ValueError(f"per-channel times need {self.n_channels} rows, got {t.shape}")
+        c, tau = self._locate(np.atleast_1d(t))
         return c[0] + tau * (c[1] + tau * (c[2] + tau * (c[3] + tau * (c[4] + tau * c[5]))))
 
     def evaluate(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
