@@ -64,7 +64,22 @@ def run_episode(env, controller: Controller, scene: Scene, seed: int, record_fra
     return record, frames
 
 
-def evaluate(env, controller: Controller, scenes: list[Scene], seed: int = 0, progress: bool = True) -> list[dict]:
+def save_video(path: Path, frames: list[np.ndarray], fps: float = 2.0) -> None:
+    """An animated GIF (PIL only, no codec needed), written atomically."""
+    from PIL import Image
+
+    from footsim.rl.common import atomic_save
+
+    images = [Image.fromarray(f) for f in frames if f is not None]
+    if not images:
+        return
+    atomic_save(lambda tmp: images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:],
+                                           duration=int(1000 / fps), loop=0), path, ".gif")
+
+
+def evaluate(env, controller: Controller, scenes: list[Scene], seed: int = 0, progress: bool = True,
+             video_dir: Path | None = None, video_episodes: int = 0) -> list[dict]:
+    """Run every scene once; with ``video_dir``, the first ``video_episodes`` are saved as GIFs."""
     records = []
     iterator = range(len(scenes))
     if progress:
@@ -72,7 +87,10 @@ def evaluate(env, controller: Controller, scenes: list[Scene], seed: int = 0, pr
 
         iterator = tqdm(iterator, desc="evaluating", unit="scene", leave=False)
     for i in iterator:
-        record, _ = run_episode(env, controller, scenes[i], seed=seed + i)
+        filming = video_dir is not None and i < video_episodes
+        record, frames = run_episode(env, controller, scenes[i], seed=seed + i, record_frames=filming)
+        if filming:
+            save_video(video_dir / f"episode_{i:03d}.gif", frames)
         records.append({"scene": i, **record})
     return records
 
@@ -170,13 +188,16 @@ def evaluate_run(run_cfg, run_dir: Path, out_dir: Path, cfg_eval, label: str | N
     from footsim.env import make_env
     from footsim.rl.common import LoadedPolicy
 
-    env = make_env(run_cfg)
+    video = bool(cfg_eval.get("video", False))
+    env = make_env(run_cfg, render_mode="rgb_array" if video else None)
     try:
         scenes = eval_scenes(cfg_eval, env.sampler)
-        if scenes[0].ball is None and env.task.obstacles or (scenes[0].obstacles and not env.task.obstacles):
+        if bool(scenes[0].obstacles) != bool(env.task.obstacles):
             print("note: the scene set and the task disagree about obstacles; evaluating as given")
         controller = PolicyController(LoadedPolicy(run_dir), deterministic=bool(cfg_eval.deterministic))
-        records = evaluate(env, controller, scenes, seed=int(cfg_eval.get("seed", 0)))
+        records = evaluate(env, controller, scenes, seed=int(cfg_eval.get("seed", 0)),
+                           video_dir=out_dir / "videos" if video else None,
+                           video_episodes=int(cfg_eval.get("video_episodes", 3)))
     finally:
         env.close()
     summary = summarize(records)
@@ -203,6 +224,8 @@ def _main(cfg) -> dict:
     for group in ("backend", "noise"):  # groups selected on the command line replace the run's
         if cfg.get(group) is not None:
             run_cfg[group] = fconf.load_preset(group, cfg[group])
+    if cfg.get("backend") is not None:  # a policy moved to another backend walks with that backend's gait
+        run_cfg.walk = fconf.load_preset("walk", fconf.walk_preset_for(run_cfg.backend.name))
     out_dir = Path(HydraConfig.get().runtime.output_dir)
     return evaluate_run(run_cfg, run_dir, out_dir, cfg)
 
