@@ -1,0 +1,279 @@
+"""MuJoCo backend: the physics verbs of :class:`~footsim.backends.physics3d.PhysicsSim` on the
+``mujoco`` bindings, driven by the shared 3D driver.
+
+The model comes from :func:`footsim.robots.mjcf.build_mjcf`.  Before compiling (once) the spec
+gets a fixed pool of obstacle geoms in the world body — :data:`N_CYLINDERS` cylinders and one
+sphere for the ball.  :meth:`MujocoSim.set_obstacles` moves and resizes them per episode by
+editing ``model.geom_pos`` / ``geom_size`` (and the bounding volumes the broad phase uses), and
+parks unused ones far below the floor with collisions off: no recompiling per episode.
+
+Joints and actuators are mapped by name once, at :meth:`MujocoSim.build`; per control tick the
+sim does one fancy-index write into ``data.ctrl`` and one ``mj_step(model, data, n)``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+
+if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
+    os.environ["MUJOCO_GL"] = "egl"  # headless rendering; must be set before mujoco is imported
+
+from footsim.backends.base import RenderOverlay
+from footsim.backends.physics3d import DEFAULT_FALL_THRESHOLD, Physics3DBackend, PhysicsSim
+from footsim.robots.mjcf import FREE_JOINT, build_mjcf, import_mujoco
+from footsim.robots.spec import RobotSpec
+from footsim.tasks.scenes import Scene
+from footsim.walk.ik import LEG_JOINT_NAMES
+from footsim.walk.params import WalkParams
+
+mujoco = import_mujoco()
+
+#: Size of the obstacle pool (the thesis scenes have up to 3 + 3 obstacles and one ball).
+N_CYLINDERS = 6
+OBSTACLE_HEIGHT = 0.8  # [m] cylinders stand on the floor, taller than the robot's hips
+_PARK = np.array([0.0, 0.0, -100.0])  # unused obstacles: far below the floor, collisions off
+_OBSTACLE_BIT = 1  # the world bit of footsim.robots.mjcf: collides with every robot geom
+_OBSTACLE_RGBA = [0.55, 0.35, 0.2, 1.0]
+_BALL_RGBA = [0.95, 0.95, 0.95, 1.0]
+#: MuJoCo warnings that mean the state can no longer be trusted (MuJoCo resets mjData itself
+#: after a bad qacc, so the counters are the only trace of a blow-up).
+_FATAL_WARNINGS = ("mjWARN_BADQACC", "mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADCTRL",
+                   "mjWARN_CONTACTFULL", "mjWARN_CNSTRFULL", "mjWARN_INERTIA")
+
+
+class MujocoSim(PhysicsSim):
+    """``PhysicsSim`` on the ``mujoco`` bindings (position actuators, implicitfast)."""
+
+    def __init__(self, integrator: str = "implicitfast", max_render_size: int = 1024):
+        self.integrator = integrator
+        self.max_render_size = int(max_render_size)
+        self.model = self.data = None
+        self._renderer = None
+
+    # -- world ------------------------------------------------------------------------------
+    def build(self, robot: RobotSpec, physics_dt: float) -> None:
+        built = build_mjcf(robot, floor=True, timestep=physics_dt)
+        spec = built.spec
+        try:
+            spec.option.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{self.integrator.upper()}")
+        except AttributeError:
+            raise ValueError(f"backend.integrator must be one of euler, implicit, implicitfast, rk4; got {self.integrator!r}") from None
+        spec.visual.global_.offwidth = self.max_render_size
+        spec.visual.global_.offheight = self.max_render_size
+        world = spec.worldbody
+        names = [f"obstacle{i}" for i in range(N_CYLINDERS)] + ["ball"]
+        for name in names:
+            is_ball = name == "ball"
+            geom = world.add_geom(
+                name=name,
+                type=mujoco.mjtGeom.mjGEOM_SPHERE if is_ball else mujoco.mjtGeom.mjGEOM_CYLINDER,
+                size=[0.1, 0.0, 0.0] if is_ball else [0.1, OBSTACLE_HEIGHT / 2, 0.0],
+                pos=_PARK.tolist(),
+                rgba=_BALL_RGBA if is_ball else _OBSTACLE_RGBA,
+            )
+            geom.contype = geom.conaffinity = _OBSTACLE_BIT
+        self.model = m = spec.compile()
+        self.data = d = mujoco.MjData(m)
+        self.robot = robot
+
+        def jid(name):
+            i = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)
+            if i < 0:
+                raise ValueError(f"MuJoCo model has no joint {name!r}")
+            return i
+
+        def aid(name):
+            i = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
+            if i < 0:
+                raise ValueError(f"MuJoCo model has no actuator {name!r}")
+            return i
+
+        free = jid(FREE_JOINT)
+        self._free_q = int(m.jnt_qposadr[free])
+        self._free_v = int(m.jnt_dofadr[free])
+        self.joint_qpos = {n: int(m.jnt_qposadr[jid(n)]) for n in robot.joint_names}
+        self.joint_dof = {n: int(m.jnt_dofadr[jid(n)]) for n in robot.joint_names}
+        self.actuator = {n: aid(n) for n in robot.joint_names}
+        for n, a in self.actuator.items():  # each actuator drives the joint of its name
+            if m.actuator_trnid[a, 0] != jid(n):
+                raise ValueError(f"actuator {n!r} does not drive joint {n!r}")
+        self._leg_ctrl = np.array([self.actuator[n] for n in LEG_JOINT_NAMES], dtype=np.intp)
+        self._obstacle_geoms = np.array([mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, n) for n in names], dtype=np.intp)
+        self._ball_geom = int(self._obstacle_geoms[-1])
+        self._obstacle_mask = np.zeros(m.ngeom, dtype=bool)
+        self._obstacle_mask[self._obstacle_geoms] = True
+        self.torso = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, robot.base_link)
+        self._warning_ids = np.array([int(getattr(mujoco.mjtWarning, w)) for w in _FATAL_WARNINGS], dtype=np.intp)
+        self._rot = np.zeros(9)
+        self._step = mujoco.mj_step
+        self._park_all()
+        mujoco.mj_forward(m, d)
+
+    def _place(self, geom: int, x: float, y: float, r: float, ball: bool) -> None:
+        m = self.model
+        if ball:
+            m.geom_size[geom] = (r, 0.0, 0.0)
+            m.geom_pos[geom] = (x, y, r)
+            m.geom_rbound[geom] = r
+            m.geom_aabb[geom] = (0.0, 0.0, 0.0, r, r, r)
+        else:
+            h = OBSTACLE_HEIGHT / 2
+            m.geom_size[geom] = (r, h, 0.0)
+            m.geom_pos[geom] = (x, y, h)
+            m.geom_rbound[geom] = math.hypot(r, h)
+            m.geom_aabb[geom] = (0.0, 0.0, 0.0, r, r, h)
+        m.geom_contype[geom] = m.geom_conaffinity[geom] = _OBSTACLE_BIT
+        m.geom_rgba[geom, 3] = 1.0
+
+    def _park(self, geom: int) -> None:
+        m = self.model
+        m.geom_pos[geom] = _PARK
+        m.geom_contype[geom] = m.geom_conaffinity[geom] = 0
+        m.geom_rgba[geom, 3] = 0.0  # invisible
+
+    def _park_all(self) -> None:
+        for g in self._obstacle_geoms:
+            self._park(int(g))
+
+    def set_obstacles(self, scene: Scene) -> None:
+        if len(scene.obstacles) > N_CYLINDERS:
+            raise ValueError(f"the MuJoCo backend holds at most {N_CYLINDERS} obstacles, scene has {len(scene.obstacles)}")
+        self._park_all()
+        for geom, obstacle in zip(self._obstacle_geoms[:-1], scene.obstacles):
+            self._place(int(geom), obstacle.x, obstacle.y, obstacle.r, ball=False)
+        if scene.ball is not None:
+            self._place(self._ball_geom, scene.ball.x, scene.ball.y, scene.ball.r, ball=True)
+
+    # -- robot ------------------------------------------------------------------------------
+    def reset_robot(self, base_position: np.ndarray, joint_positions: dict[str, float]) -> None:
+        m, d = self.model, self.data
+        mujoco.mj_resetData(m, d)  # zero velocities, clear warnings, time, contacts
+        d.qpos[self._free_q:self._free_q + 3] = base_position
+        d.qpos[self._free_q + 3:self._free_q + 7] = (1.0, 0.0, 0.0, 0.0)
+        for name, angle in joint_positions.items():
+            d.qpos[self.joint_qpos[name]] = angle
+            d.ctrl[self.actuator[name]] = angle
+        # Lower the robot so the lowest sole touches the floor.
+        mujoco.mj_kinematics(m, d)
+        lowest = min(self._sole_height(s) for s in ("l_sole", "r_sole"))
+        d.qpos[self._free_q + 2] -= lowest
+        mujoco.mj_forward(m, d)
+
+    def _sole_height(self, site: str) -> float:
+        sid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_SITE, site)
+        return float(self.data.site_xpos[sid, 2])  # the sole site is on the bottom face
+
+    def set_leg_targets(self, targets: np.ndarray) -> None:
+        self.data.ctrl[self._leg_ctrl] = targets
+
+    def advance(self, n_steps: int) -> None:
+        self._step(self.model, self.data, n_steps)
+
+    def base_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        q = self.data.qpos
+        mujoco.mju_quat2Mat(self._rot, q[self._free_q + 3:self._free_q + 7])
+        return q[self._free_q:self._free_q + 3].copy(), self._rot.reshape(3, 3).copy()
+
+    def obstacle_contact(self) -> bool:
+        d = self.data
+        if d.ncon == 0:
+            return False
+        return bool(self._obstacle_mask[d.contact.geom].any())
+
+    def sim_error(self) -> str | None:
+        d = self.data
+        counts = d.warning.number[self._warning_ids]
+        if counts.any():
+            names = [w for w, c in zip(_FATAL_WARNINGS, counts) if c]
+            return "MuJoCo warning: " + ", ".join(names)
+        if not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all()):
+            return "non-finite MuJoCo state (qpos/qvel)"
+        return None
+
+    # -- rendering --------------------------------------------------------------------------
+    def render(self, overlay: RenderOverlay | None, width: int, height: int) -> np.ndarray | None:
+        width, height = min(int(width), self.max_render_size), min(int(height), self.max_render_size)
+        if self._renderer is None or (self._renderer.width, self._renderer.height) != (width, height):
+            if self._renderer is not None:
+                self._renderer.close()
+            self._renderer = mujoco.Renderer(self.model, height=height, width=width)
+            self._camera = mujoco.MjvCamera()
+            self._camera.type = mujoco.mjtCamera.mjCAMERA_TRACKING
+            self._camera.trackbodyid = self.torso
+            self._camera.distance = 2.2
+            self._camera.elevation = -35.0
+            self._camera.azimuth = 135.0
+        renderer = self._renderer
+        renderer.update_scene(self.data, camera=self._camera)
+        if overlay is not None:
+            self._draw_overlay(renderer.scene, overlay)
+        return renderer.render().copy()
+
+    @staticmethod
+    def _add_geom(scene, kind, size, pos, mat, rgba):
+        if scene.ngeom >= scene.maxgeom:
+            return None
+        geom = scene.geoms[scene.ngeom]
+        mujoco.mjv_initGeom(geom, kind, np.asarray(size, float), np.asarray(pos, float),
+                            np.asarray(mat, float).ravel(), np.asarray(rgba, np.float32))
+        scene.ngeom += 1
+        return geom
+
+    def _draw_overlay(self, scene, overlay: RenderOverlay) -> None:
+        goal = overlay.goal
+        colour = [0.1, 0.8, 0.1, 0.8] if overlay.reached else [0.9, 0.1, 0.1, 0.8]
+        eye = np.eye(3)
+        self._add_geom(scene, mujoco.mjtGeom.mjGEOM_CYLINDER, [0.12, 0.005, 0], [goal.x, goal.y, 0.005], eye, colour)
+        self._arrow(scene, (goal.x, goal.y), goal.theta, 0.35, 0.02, colour)
+        if overlay.believed is not None:
+            b = overlay.believed
+            self._arrow(scene, (b.x, b.y), b.theta, 0.25, 0.015, [0.2, 0.4, 1.0, 0.8])
+        if overlay.ray_endpoints is not None and overlay.believed is not None:
+            start = np.array([overlay.believed.x, overlay.believed.y, 0.02])
+            for end in np.asarray(overlay.ray_endpoints, float):
+                geom = self._add_geom(scene, mujoco.mjtGeom.mjGEOM_LINE, [1, 1, 1], start, eye, [1.0, 0.8, 0.0, 0.6])
+                if geom is not None:
+                    mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_LINE, 2.0, start, np.array([end[0], end[1], 0.02]))
+
+    def _arrow(self, scene, xy, theta, length, width, rgba) -> None:
+        start = np.array([xy[0], xy[1], 0.03])
+        end = start + np.array([length * math.cos(theta), length * math.sin(theta), 0.0])
+        geom = self._add_geom(scene, mujoco.mjtGeom.mjGEOM_ARROW, [1, 1, 1], start, np.eye(3), rgba)
+        if geom is not None:
+            mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_ARROW, width, start, end)
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+        self.model = self.data = None
+
+
+class MujocoBackend(Physics3DBackend):
+    """The MuJoCo backend (``backend=mujoco``; options in ``conf/backend/mujoco.yaml``)."""
+
+    name = "mujoco"
+
+    def __init__(
+        self,
+        robot: RobotSpec,
+        walk: WalkParams,
+        control_dt: float = 0.01,
+        physics_dt: float = 0.005,
+        fall_threshold: float = DEFAULT_FALL_THRESHOLD,
+        collision_ends_episode: bool = False,
+        contact_check_every: int = 5,
+        settle_time: float = 0.1,
+        out_of_bounds: float = 50.0,
+        render_size=(480, 480),
+        integrator: str = "implicitfast",
+    ):
+        super().__init__(
+            robot, walk, MujocoSim(integrator=integrator), control_dt=control_dt, physics_dt=physics_dt,
+            fall_threshold=fall_threshold, collision_ends_episode=collision_ends_episode,
+            contact_check_every=contact_check_every, settle_time=settle_time, out_of_bounds=out_of_bounds,
+            render_size=tuple(render_size),
+        )
