@@ -339,3 +339,15 @@ def test_reset_places_the_feet_around_a_pose():
     assert (nav.x, nav.y, nav.theta) == pytest.approx((1.0, 2.0, 0.5))
     traj = engine.double_step(DoubleStep(Footstep(), Footstep()))
     assert traj.trunk[0, 5] == pytest.approx(0.5)
+
+
+def test_walkplot_cli_writes_a_png(tmp_path):
+    from footsim.walk.plot import main
+
+    out = tmp_path / "walk.png"
+    main([f"out={out}", "steps=0.05,0,0.2,0.05,0.03,0.2", "n=1", "stop=false"])
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    with pytest.raises(SystemExit):
+        main(["steps=0,0,0,0,0,0"])  # out= is required
+    with pytest.raises(SystemExit):
+        main([f"out={out}", "steps=nan,0,0,0,0,0"])

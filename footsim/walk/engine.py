@@ -443,8 +443,10 @@ class QuinticWalk:
             t_target = plan.duration + t1 if t1 > min_gap else plan.duration + t1 + half
             return [[start[c], (t_target, target[c, 0], target[c, 1])] for c in (X, Y, Z, PITCH)]
 
-        swing = p.trunk_swing * (p.first_step_swing_factor if plan.kind == WalkState.START_STEP else 1.0)
-        at_support, at_next = self._trunk_apexes(plan.last, plan.landing, swing)
+        at_support, at_next = self._trunk_apexes(plan.last, plan.landing, p.trunk_swing)
+        if plan.kind == WalkState.START_STEP:
+            # The first step leans further over its support foot; the next apex is a normal one.
+            at_support, _ = self._trunk_apexes(plan.last, plan.landing, p.trunk_swing * p.first_step_swing_factor)
         if plan.kind == WalkState.STOP_STEP:
             # Come to rest standing between the feet instead of swinging over to the next foot.
             at_next = np.zeros((6, 2))
