@@ -109,11 +109,12 @@ def build_noise(noise_cfg: Mapping):
 
     cfg = dict(noise_cfg)
     cfg.pop("name", None)
-    known = set(NoiseModel.__dataclass_fields__)
+    known = {k for k in NoiseModel.__dataclass_fields__ if not k.startswith("_")}
     unknown = sorted(set(cfg) - known)
     if unknown:
         raise ValueError(f"noise: unknown key(s) {unknown}; valid: {sorted(known)}")
-    return NoiseModel(**{k: _number(cfg, k, "noise") for k in cfg})
+    # delay_steps is a count: passed as given, NoiseModel rejects non-integers naming the key
+    return NoiseModel(**{k: (cfg[k] if k == "delay_steps" else _number(cfg, k, "noise")) for k in cfg})
 
 
 def build_walk(walk_cfg: Mapping):

@@ -107,6 +107,7 @@ class FootstepEnv(gym.Env):
         self._steps = 0
         self._time = 0.0
         self._outcome = "running"
+        self.noise.reset(self._noise_rng)  # per-episode bias, empty delay buffer
         self._believed = self.noise.believe(self._pose, self._noise_rng)
         obs = nav.observation(self._believed, self.scene, self._prev_actions, self.task)
         return obs, self._info({})

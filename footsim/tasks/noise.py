@@ -1,37 +1,101 @@
-"""What the robot believes its pose is: localization noise (thesis 6.1).
+"""What the robot believes its pose is: localization noise (thesis 6.1), bias and delay.
 
-Zero-mean Gaussian noise in the robot frame, drawn afresh every step: σx 0.05 m, σy 0.03 m,
-σθ 0.07 rad in the ``localization`` preset.
+Three optional, independent corruptions of the true planar pose, all in the robot frame:
+
+* **Gaussian** (thesis): zero-mean noise drawn afresh every step, σx 0.05 m, σy 0.03 m,
+  σθ 0.07 rad in the ``localization`` preset.
+* **Bias** (per episode): an offset ``b ~ N(0, diag(bias_sigma_x, bias_sigma_y, bias_sigma_theta)²)``
+  drawn once in :meth:`NoiseModel.reset` and applied unchanged for the whole episode — a
+  localization that is consistently off, e.g. after a wrong relocalization.
+* **Delay** (``delay_steps = k``): the observation is the believed pose of ``k`` steps ago (the
+  localization lags the robot).  Before ``k`` steps have passed, the first believed pose of the
+  episode is repeated (the robot stood at its start pose before the episode began).
+
+The believed pose of step ``t`` is ``true_t ∘ b ∘ n_t`` (bias, then the fresh Gaussian ``n_t``, both
+in the robot frame); the model returns the believed pose of step ``t - k``.
+
+Random numbers are drawn only for the active parts, so switching bias or delay on leaves the
+Gaussian stream of a preset unchanged, and switching everything off draws nothing.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections import deque
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from footsim.geometry import Pose2D
 
+SIGMA_KEYS = ("sigma_x", "sigma_y", "sigma_theta", "bias_sigma_x", "bias_sigma_y", "bias_sigma_theta")
 
-@dataclass(frozen=True)
+
+@dataclass
 class NoiseModel:
+    """Noise configuration plus the per-episode state (bias, delay buffer) of one env."""
+
     sigma_x: float = 0.0
     sigma_y: float = 0.0
     sigma_theta: float = 0.0
+    bias_sigma_x: float = 0.0
+    bias_sigma_y: float = 0.0
+    bias_sigma_theta: float = 0.0
+    delay_steps: int = 0
+
+    _bias: Pose2D = field(default=Pose2D(), init=False, repr=False, compare=False)
+    _history: deque = field(default_factory=deque, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        for key in ("sigma_x", "sigma_y", "sigma_theta"):
+        for key in SIGMA_KEYS:
             value = getattr(self, key)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+            if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise ValueError(f"noise.{key} must be a number >= 0, got {value!r}")
+        k = self.delay_steps
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 0:
+            raise ValueError(f"noise.delay_steps must be an integer >= 0, got {k!r}")
+        self.delay_steps = int(k)
+        self._history = deque(maxlen=self.delay_steps + 1)
+
+    # -- what is switched on -------------------------------------------------------------
+    @property
+    def gaussian(self) -> bool:
+        return self.sigma_x > 0 or self.sigma_y > 0 or self.sigma_theta > 0
+
+    @property
+    def biased(self) -> bool:
+        return self.bias_sigma_x > 0 or self.bias_sigma_y > 0 or self.bias_sigma_theta > 0
 
     @property
     def active(self) -> bool:
-        return self.sigma_x > 0 or self.sigma_y > 0 or self.sigma_theta > 0
+        return self.gaussian or self.biased or self.delay_steps > 0
+
+    @property
+    def bias(self) -> Pose2D:
+        """This episode's bias (robot frame); zero before the first :meth:`reset` or when off."""
+        return self._bias
+
+    # -- per episode / per step ------------------------------------------------------------
+    def reset(self, rng: np.random.Generator) -> None:
+        """Start an episode: draw the bias (if configured) and forget the delayed poses."""
+        if self.biased:
+            bx, by, bt = rng.normal(0.0, 1.0, size=3) * (self.bias_sigma_x, self.bias_sigma_y, self.bias_sigma_theta)
+            self._bias = Pose2D(float(bx), float(by), float(bt))
+        else:
+            self._bias = Pose2D()
+        self._history.clear()
 
     def believe(self, true_pose: Pose2D, rng: np.random.Generator) -> Pose2D:
+        """The pose the robot believes it has this step (call once per step, after :meth:`reset`)."""
         if not self.active:
             return true_pose
-        nx, ny, nt = rng.normal(0.0, 1.0, size=3) * (self.sigma_x, self.sigma_y, self.sigma_theta)
-        return true_pose.compose(Pose2D(float(nx), float(ny), float(nt)))
+        pose = true_pose
+        if self.biased:
+            pose = pose.compose(self._bias)
+        if self.gaussian:
+            nx, ny, nt = rng.normal(0.0, 1.0, size=3) * (self.sigma_x, self.sigma_y, self.sigma_theta)
+            pose = pose.compose(Pose2D(float(nx), float(ny), float(nt)))
+        if self.delay_steps == 0:
+            return pose
+        self._history.append(pose)  # maxlen k+1: the oldest entry is the pose of k steps ago
+        return self._history[0]

@@ -1,0 +1,150 @@
+"""Observation noise: thesis Gaussian, per-episode bias, delay; presets and validation."""
+
+import math
+
+import numpy as np
+import pytest
+
+from footsim.config import build_noise, load_preset
+from footsim.env import FootstepEnv
+from footsim.geometry import Pose2D
+from footsim.tasks.noise import NoiseModel
+
+
+def _walk(n, seed=0):
+    rng = np.random.default_rng(seed)
+    return [Pose2D(*rng.uniform(-2, 2, size=2), float(rng.uniform(-3, 3))) for _ in range(n)]
+
+
+def test_bias_is_constant_within_an_episode():
+    noise = NoiseModel(bias_sigma_x=0.1, bias_sigma_y=0.2, bias_sigma_theta=0.3)
+    rng = np.random.default_rng(1)
+    noise.reset(rng)
+    offsets = np.array([p.relative(noise.believe(p, rng)) for p in _walk(50)])
+    assert np.allclose(offsets, offsets[0], atol=1e-12)  # the same robot-frame offset every step
+    assert np.allclose(offsets[0], noise.bias, atol=1e-12) and np.linalg.norm(offsets[0]) > 0
+
+
+def test_bias_is_resampled_per_episode_with_the_configured_sigma():
+    sigmas = (0.1, 0.2, 0.3)
+    noise = NoiseModel(bias_sigma_x=sigmas[0], bias_sigma_y=sigmas[1], bias_sigma_theta=sigmas[2])
+    rng = np.random.default_rng(2)
+    true = Pose2D(1.0, -0.5, 2.0)
+    biases = []
+    for _ in range(5000):
+        noise.reset(rng)
+        biases.append(true.relative(noise.believe(true, rng)))
+    biases = np.array(biases)
+    assert len(np.unique(biases[:, 0])) == len(biases)  # a new bias every episode
+    assert biases.mean(axis=0) == pytest.approx([0, 0, 0], abs=0.02)
+    assert biases.std(axis=0) == pytest.approx(sigmas, rel=0.05)
+
+
+def test_bias_plus_gaussian_keeps_both_spreads():
+    noise = NoiseModel(0.05, 0.03, 0.07, bias_sigma_x=0.2)
+    rng = np.random.default_rng(3)
+    true = Pose2D(0.3, 0.2, -1.0)
+    noise.reset(rng)
+    within = np.array([true.relative(noise.believe(true, rng)) for _ in range(5000)])
+    assert within.std(axis=0) == pytest.approx([0.05, 0.03, 0.07], rel=0.05)  # per-step spread only
+    assert within[:, 0].mean() == pytest.approx(noise.bias.x, abs=0.005)
+
+
+@pytest.mark.parametrize("k", [1, 3])
+def test_delay_returns_exactly_the_pose_from_k_steps_earlier(k):
+    poses = _walk(20)
+    noise = NoiseModel(delay_steps=k)
+    noise.reset(np.random.default_rng(0))
+    out = [noise.believe(p, None) for p in poses]
+    for t, got in enumerate(out):
+        assert got == poses[max(t - k, 0)]  # before k steps: the episode's first pose
+    # a new episode forgets the previous one
+    noise.reset(np.random.default_rng(0))
+    assert noise.believe(Pose2D(9.0, 9.0, 0.0), None) == Pose2D(9.0, 9.0, 0.0)
+
+
+def test_delay_delays_the_noisy_belief_and_keeps_the_noise_stream():
+    poses = _walk(15, seed=4)
+    plain, delayed = NoiseModel(0.05, 0.03, 0.07), NoiseModel(0.05, 0.03, 0.07, delay_steps=2)
+    rng_a, rng_b = np.random.default_rng(7), np.random.default_rng(7)
+    plain.reset(rng_a)
+    delayed.reset(rng_b)
+    a = [plain.believe(p, rng_a) for p in poses]
+    b = [delayed.believe(p, rng_b) for p in poses]
+    assert b[2:] == a[:-2] and b[0] == b[1] == b[2] == a[0]
+
+
+def test_env_observes_the_delayed_pose():
+    env = FootstepEnv(noise={"delay_steps": 2})
+    _, info = env.reset(seed=0)
+    truth = [info["pose"]]
+    estimates = [info["pose_estimate"]]
+    rng = np.random.default_rng(0)
+    for _ in range(6):
+        _, _, term, trunc, info = env.step(rng.uniform(-1, 1, 6))
+        truth.append(info["pose"])
+        estimates.append(info["pose_estimate"])
+        if term or trunc:
+            break
+    assert len(truth) > 3
+    for t in range(len(truth)):
+        np.testing.assert_array_equal(estimates[t], truth[max(t - 2, 0)])
+
+
+def test_env_bias_per_episode_and_reproducible():
+    def episode_offsets(env, seed):
+        _, info = env.reset(seed=seed)
+        offsets = [Pose2D(*info["pose"]).relative(Pose2D(*info["pose_estimate"]))]
+        for _ in range(4):
+            _, _, term, trunc, info = env.step(np.zeros(6))
+            offsets.append(Pose2D(*info["pose"]).relative(Pose2D(*info["pose_estimate"])))
+            if term or trunc:
+                break
+        return np.array(offsets)
+
+    cfg = {"bias_sigma_x": 0.1, "bias_sigma_y": 0.1, "bias_sigma_theta": 0.1}
+    env = FootstepEnv(noise=cfg)
+    first = episode_offsets(env, seed=1)
+    second = episode_offsets(env, seed=2)
+    assert np.allclose(first, first[0]) and np.allclose(second, second[0])
+    assert not np.allclose(first[0], second[0])
+    again = episode_offsets(FootstepEnv(noise=cfg), seed=1)
+    np.testing.assert_array_equal(first, again)
+
+
+def test_presets():
+    thesis = load_preset("noise", "localization")
+    assert (thesis["sigma_x"], thesis["sigma_y"], thesis["sigma_theta"]) == (0.05, 0.03, 0.07)
+    assert thesis["delay_steps"] == 0 and thesis["bias_sigma_x"] == thesis["bias_sigma_theta"] == 0
+    biased = build_noise(load_preset("noise", "localization_biased"))
+    assert biased.biased and biased.gaussian and biased.delay_steps == 0
+    delayed = build_noise(load_preset("noise", "localization_delayed"))
+    assert delayed.delay_steps >= 1 and not delayed.biased and delayed.sigma_x == 0.05
+    assert not build_noise(load_preset("noise", "none")).active
+    for name in ("localization_biased", "localization_delayed"):
+        FootstepEnv(noise=name).reset(seed=0)
+
+
+def test_switching_bias_on_does_not_change_the_scenes():
+    a = FootstepEnv(noise="localization")
+    b = FootstepEnv(noise="localization_biased")
+    a.reset(seed=3)
+    b.reset(seed=3)
+    assert a.scene == b.scene
+
+
+@pytest.mark.parametrize("cfg,message", [
+    ({"delay_steps": -1}, "noise.delay_steps must be an integer >= 0"),
+    ({"delay_steps": 1.5}, "noise.delay_steps must be an integer >= 0"),
+    ({"delay_steps": True}, "noise.delay_steps must be an integer >= 0"),
+    ({"delay_steps": "2"}, "noise.delay_steps must be an integer >= 0"),
+    ({"bias_sigma_x": -0.1}, "noise.bias_sigma_x must be a number >= 0"),
+    ({"bias_sigma_theta": math.inf}, "noise.bias_sigma_theta"),
+    ({"bias_sigma_y": "a"}, "noise.bias_sigma_y"),
+    ({"bias": 0.1}, r"noise: unknown key\(s\) \['bias'\]"),
+])
+def test_invalid_values_name_the_key(cfg, message):
+    with pytest.raises(ValueError, match=message):
+        FootstepEnv(noise=cfg)
+    with pytest.raises(ValueError, match=message):
+        build_noise(cfg)
