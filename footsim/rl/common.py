@@ -71,8 +71,19 @@ def validate_train_config(cfg: DictConfig) -> None:
         raise ValueError(f"agent.ent_coef must be >= 0, got {cfg.agent.ent_coef!r}")
     if cfg.agent.activation not in ("tanh", "relu"):
         raise ValueError(f"agent.activation must be tanh or relu, got {cfg.agent.activation!r}")
+    if cfg.agent.get("distribution", "gaussian") not in ("gaussian", "beta"):
+        raise ValueError(f"agent.distribution must be gaussian or beta, got {cfg.agent.distribution!r}")
     if cfg.train.vec_env not in ("auto", "dummy", "subproc"):
         raise ValueError(f"train.vec_env must be auto, dummy or subproc, got {cfg.train.vec_env!r}")
+
+
+def policy_class(agent: DictConfig):
+    """SB3 policy for the configured action distribution."""
+    if agent.get("distribution", "gaussian") == "beta":
+        from footsim.rl.beta import BetaActorCriticPolicy
+
+        return BetaActorCriticPolicy
+    return "MlpPolicy"
 
 
 def policy_kwargs(agent: DictConfig) -> dict:

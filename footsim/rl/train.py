@@ -15,8 +15,8 @@ from pathlib import Path
 from omegaconf import DictConfig, OmegaConf
 
 from footsim.rl.common import (
-    CHECKPOINT_DIR, MODEL_FILE, VECNORM_FILE, atomic_save, load_run_config, policy_kwargs, save_config,
-    validate_train_config, write_json,
+    CHECKPOINT_DIR, MODEL_FILE, VECNORM_FILE, atomic_save, load_run_config, policy_class, policy_kwargs,
+    save_config, validate_train_config, write_json,
 )
 
 LATEST = "latest.zip"
@@ -106,13 +106,19 @@ def train(cfg: DictConfig, run_dir: Path) -> dict:
         print(f"resuming {run_dir} at {done} of {cfg.train.total_timesteps} steps")
     else:
         model = PPO(
-            "MlpPolicy", venv, policy_kwargs=policy_kwargs(agent), learning_rate=float(agent.learning_rate),
+            policy_class(agent), venv, policy_kwargs=policy_kwargs(agent), learning_rate=float(agent.learning_rate),
             n_steps=int(agent.n_steps), batch_size=int(agent.batch_size), n_epochs=int(agent.n_epochs),
             gamma=float(agent.gamma), gae_lambda=float(agent.gae_lambda), clip_range=float(agent.clip_range),
             ent_coef=float(agent.ent_coef), vf_coef=float(agent.vf_coef), max_grad_norm=float(agent.max_grad_norm),
             tensorboard_log=str(run_dir / "tb") if cfg.train.tensorboard else None, seed=int(cfg.seed),
             device="cpu", verbose=0,
         )
+        if cfg.get("init_from"):
+            from footsim.rl.transfer import init_from_run
+
+            lineage = init_from_run(model, cfg.init_from)
+            write_json(run_dir / "parent.json", lineage)
+            print(f"initialised from {lineage['init_from']} ({lineage['parent_backend']}, {lineage['parent_task']})")
         done = 0
     remaining = int(cfg.train.total_timesteps) - done
     started = time.time()

@@ -1,0 +1,88 @@
+"""A Beta action distribution for SB3's PPO (``agent=ppo_beta``), as in thesis 5.3.
+
+The policy head outputs two numbers per action dimension; α = softplus(·) + 1 and
+β = softplus(·) + 1 keep the density unimodal (α, β > 1).  Samples x ∈ (0, 1) are rescaled to
+the action bounds, a = low + (high − low)·x, so actions never leave the box and need no
+clipping.  The deterministic action is the **mode** (α − 1)/(α + β − 2) (thesis: "the mode of
+the beta distribution is applied").  Saved and loaded like any SB3 model (the policy class is
+importable), so Beta policies also serve as transfer-learning initialisations.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+
+import numpy as np
+import torch as th
+from stable_baselines3.common.distributions import Distribution
+from stable_baselines3.common.policies import ActorCriticPolicy
+from torch import nn
+from torch.nn import functional as F
+
+_EPS = 1e-6
+
+
+class BetaDistribution(Distribution):
+    def __init__(self, action_dim: int, low: np.ndarray, high: np.ndarray):
+        super().__init__()
+        self.action_dim = action_dim
+        self.low = th.as_tensor(low, dtype=th.float32)
+        self.scale = th.as_tensor(high - low, dtype=th.float32)
+        self.distribution: th.distributions.Beta | None = None
+
+    def proba_distribution_net(self, latent_dim: int) -> nn.Module:
+        return nn.Linear(latent_dim, 2 * self.action_dim)
+
+    def proba_distribution(self, params: th.Tensor) -> "BetaDistribution":
+        a, b = th.chunk(params, 2, dim=-1)
+        self.distribution = th.distributions.Beta(F.softplus(a) + 1.0, F.softplus(b) + 1.0)
+        return self
+
+    def _to_unit(self, actions: th.Tensor) -> th.Tensor:
+        x = (actions - self.low.to(actions.device)) / self.scale.to(actions.device)
+        return x.clamp(_EPS, 1.0 - _EPS)
+
+    def _from_unit(self, x: th.Tensor) -> th.Tensor:
+        return self.low.to(x.device) + self.scale.to(x.device) * x
+
+    def log_prob(self, actions: th.Tensor) -> th.Tensor:
+        # density of a = low + scale·x: p(a) = p(x) / scale per dimension
+        log_p = self.distribution.log_prob(self._to_unit(actions)) - th.log(self.scale.to(actions.device))
+        return log_p.sum(dim=-1)
+
+    def entropy(self) -> th.Tensor:
+        return (self.distribution.entropy() + th.log(self.scale.to(self.distribution.concentration1.device))).sum(dim=-1)
+
+    def sample(self) -> th.Tensor:
+        return self._from_unit(self.distribution.rsample().clamp(_EPS, 1.0 - _EPS))
+
+    def mode(self) -> th.Tensor:
+        alpha, beta = self.distribution.concentration1, self.distribution.concentration0
+        return self._from_unit((alpha - 1.0) / (alpha + beta - 2.0))
+
+    def actions_from_params(self, params: th.Tensor, deterministic: bool = False) -> th.Tensor:
+        self.proba_distribution(params)
+        return self.get_actions(deterministic=deterministic)
+
+    def log_prob_from_params(self, params: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+        actions = self.actions_from_params(params)
+        return actions, self.log_prob(actions)
+
+
+class BetaActorCriticPolicy(ActorCriticPolicy):
+    """SB3's actor-critic with a Beta action head (Box action spaces only)."""
+
+    def _build(self, lr_schedule) -> None:
+        super()._build(lr_schedule)  # feature/MLP extractors, value net, initialisation
+        low, high = self.action_space.low, self.action_space.high
+        if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high))):
+            raise ValueError("the Beta policy needs a bounded Box action space")
+        self.action_dist = BetaDistribution(int(np.prod(self.action_space.shape)), low, high)
+        self.action_net = self.action_dist.proba_distribution_net(self.mlp_extractor.latent_dim_pi)
+        if self.ortho_init:
+            self.action_net.apply(partial(self.init_weights, gain=0.01))
+        del self.log_std  # the Gaussian's parameter has no role here
+        self.optimizer = self.optimizer_class(self.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs)
+
+    def _get_action_dist_from_latent(self, latent_pi: th.Tensor) -> Distribution:
+        return self.action_dist.proba_distribution(self.action_net(latent_pi))

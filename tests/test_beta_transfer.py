@@ -1,0 +1,97 @@
+import json
+import subprocess
+
+import numpy as np
+import pytest
+import torch as th
+from stable_baselines3 import PPO
+
+from footsim.env import FootstepEnv
+from footsim.rl.beta import BetaActorCriticPolicy, BetaDistribution
+
+TINY = ["train.total_timesteps=128", "train.n_envs=2", "agent.n_steps=64", "agent.batch_size=64",
+        "agent.n_epochs=1", "train.progress_bar=false", "train.tensorboard=false", "eval.after_train=false"]
+
+
+def test_log_prob_and_entropy_match_torch_beta_rescaled():
+    low, high = np.array([-1.0, -2.0, 0.0]), np.array([1.0, 2.0, 0.5])
+    dist = BetaDistribution(3, low, high)
+    params = th.randn(5, 6)
+    dist.proba_distribution(params)
+    alpha = th.nn.functional.softplus(params[:, :3]) + 1
+    beta = th.nn.functional.softplus(params[:, 3:]) + 1
+    reference = th.distributions.TransformedDistribution(
+        th.distributions.Beta(alpha, beta),
+        th.distributions.AffineTransform(th.tensor(low, dtype=th.float32), th.tensor(high - low, dtype=th.float32)))
+    actions = reference.sample()
+    np.testing.assert_allclose(dist.log_prob(actions), reference.log_prob(actions).sum(-1), rtol=1e-5, atol=1e-5)
+    # entropy of a·X + b is H(X) + log|a|
+    expected = (th.distributions.Beta(alpha, beta).entropy() + th.log(th.tensor(high - low))).sum(-1)
+    np.testing.assert_allclose(dist.entropy(), expected, rtol=1e-5)
+    assert th.all(alpha > 1) and th.all(beta > 1)
+
+
+def test_samples_never_leave_the_bounds_and_mode_is_the_beta_mode():
+    dist = BetaDistribution(6, -np.ones(6), np.ones(6))
+    params = th.randn(2000, 12) * 5
+    dist.proba_distribution(params)
+    samples = dist.sample()
+    assert th.all(samples > -1) and th.all(samples < 1)
+    a = dist.distribution.concentration1
+    b = dist.distribution.concentration0
+    np.testing.assert_allclose(dist.mode(), -1 + 2 * (a - 1) / (a + b - 2), rtol=1e-5, atol=1e-6)
+
+
+def test_beta_policy_learns_saves_and_loads(tmp_path):
+    env = FootstepEnv()
+    model = PPO(BetaActorCriticPolicy, env, n_steps=64, batch_size=64, n_epochs=1, device="cpu", seed=0)
+    model.learn(128)
+    obs, _ = env.reset(seed=1)
+    action, _ = model.predict(obs, deterministic=True)
+    model.save(tmp_path / "beta.zip")
+    loaded = PPO.load(tmp_path / "beta.zip", device="cpu")
+    assert isinstance(loaded.policy, BetaActorCriticPolicy)
+    np.testing.assert_array_equal(loaded.predict(obs, deterministic=True)[0], action)
+    assert np.all(np.abs(action) <= 1)
+
+
+def _train(tmp_path, name, *overrides):
+    run_dir = tmp_path / name
+    proc = subprocess.run(["footsim-train", *TINY, *overrides, f"hydra.run.dir={run_dir}"],
+                          capture_output=True, text=True, timeout=300)
+    return run_dir, proc
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("agent", ["ppo", "ppo_beta"])
+def test_init_from_copies_weights_and_records_the_parent(tmp_path, agent):
+    parent, proc = _train(tmp_path, "parent", f"agent={agent}")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    # weights copied exactly into a fresh model
+    from footsim.rl.transfer import init_from_run
+
+    cls = BetaActorCriticPolicy if agent == "ppo_beta" else "MlpPolicy"
+    from footsim.rl.common import policy_kwargs
+    from omegaconf import OmegaConf
+
+    agent_cfg = OmegaConf.load(f"conf/agent/{agent}.yaml")
+    fresh = PPO(cls, FootstepEnv(), policy_kwargs=policy_kwargs(agent_cfg), device="cpu", seed=3)
+    record = init_from_run(fresh, parent)
+    saved = PPO.load(parent / "model.zip", device="cpu")
+    for (k, v), (k2, v2) in zip(fresh.policy.state_dict().items(), saved.policy.state_dict().items()):
+        assert k == k2 and th.equal(v, v2)
+    assert record["parent_backend"] == "pymunk"
+
+    child, proc = _train(tmp_path, "child", f"agent={agent}", f"init_from={parent}")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert json.loads((child / "parent.json").read_text())["init_from"] == str(parent)
+
+
+@pytest.mark.slow
+def test_init_from_with_mismatched_spaces_or_distribution_fails_clearly(tmp_path):
+    parent, proc = _train(tmp_path, "parent")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    _, proc = _train(tmp_path, "child", "task=nav_obstacles", f"init_from={parent}")
+    assert proc.returncode != 0 and "observation spaces differ" in proc.stderr
+    _, proc = _train(tmp_path, "child2", "agent=ppo_beta", f"init_from={parent}")
+    assert proc.returncode != 0 and "agent=ppo or agent=ppo_beta" in proc.stderr
