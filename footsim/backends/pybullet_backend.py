@@ -1,0 +1,320 @@
+"""PyBullet backend: the physics verbs of the shared 3D driver on a DIRECT-mode Bullet client.
+
+Model.  The URDF comes from the robot spec (``footsim.robots.urdf.urdf_xml``), written once per
+backend to a temporary file (removed on ``close``) and loaded with ``URDF_USE_INERTIA_FROM_FILE``
+(Bullet would otherwise recompute inertias from the collision shapes) and
+``URDF_USE_SELF_COLLISION``.  Self-collision is then restricted with collision groups to what the
+spec marks ``self_collision`` (lower legs, ankles, feet) and only *between* the two legs —
+the same pairs the MJCF model collides.  Joints are mapped by name once, at build.
+
+Several backends coexist in one process: each owns its own ``p.connect(p.DIRECT)`` client and
+passes ``physicsClientId`` on every call.  No GUI, no OpenGL; ``render`` uses TinyRenderer.
+
+Motors.  Every joint is a ``POSITION_CONTROL`` motor with ``force`` = the joint's effort limit.
+Bullet's position motor is not a spring: it is a velocity constraint solved each tick,
+``v_target = positionGain · (q* − q) / dt + velocityGain · (q̇* − q̇) + q̇`` (velocityGain 1:
+``v_target = positionGain / dt · (q* − q)``), force-limited.  A servo with gain ``kp`` and
+damping ``kd`` whose inertia is small against ``kd`` (the overdamped limit) settles as
+``q̇ = kp / kd · (q* − q)``: the same first-order law.  So we map the spec's servo parameters
+(``kp`` [Nm/rad], and its ``damping`` [Nm s/rad] as ``kd``) to
+
+    positionGain = position_gain_scale · kp · dt / damping
+
+(Wolfgang legs: kp 42.2, damping 2.17 → time constant kd/kp = 51 ms; dt 1/240 → 0.081 · scale,
+close to Bullet's default 0.1).  The spec's armature has no URDF field and is not used.  The
+URDF's joint damping is applied by Bullet as passive damping on top; the joint's default
+velocity motor (the URDF friction) is replaced by the position motor.
+
+Contacts.  Lateral / spinning / rolling friction of the floor and the feet as the Bit-Bots'
+PyBullet setup (FACTS: 1.0 / 0.1 / 0.1).  Obstacles are static cylinders, the ball a static
+sphere, both rebuilt per episode.
+
+Determinism.  Every episode starts from ``resetSimulation`` and a fresh load of the same URDF
+file (a few ms), so an episode's trajectory depends only on the scene and the actions, not on
+contact caches left by earlier episodes.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+import weakref
+
+import numpy as np
+import pybullet as p
+
+from footsim.backends.base import RenderOverlay
+from footsim.backends.physics3d import Physics3DBackend, PhysicsSim
+from footsim.robots.spec import Box, Capsule, Cylinder, RobotSpec, Sphere
+from footsim.robots.urdf import urdf_xml
+from footsim.tasks.scenes import Scene
+from footsim.walk.ik import LEG_JOINT_NAMES
+from footsim.walk.params import WalkParams
+
+# Collision groups / masks (collide when group_a & mask_b and group_b & mask_a).
+_ROBOT, _STATIC, _LEFT_LEG, _RIGHT_LEG = 1, 2, 4, 8
+
+
+def _cleanup(client: int, path: str | None) -> None:
+    try:
+        if p.isConnected(client):
+            p.disconnect(client)
+    except Exception:  # pragma: no cover - interpreter shutdown
+        pass
+    if path:
+        try:
+            os.unlink(path)
+        except OSError:
+            pass
+
+
+class PybulletSim(PhysicsSim):
+    """One DIRECT-mode Bullet world holding the robot, the floor and the scene's obstacles."""
+
+    def __init__(
+        self,
+        lateral_friction: float = 1.0,
+        spinning_friction: float = 0.1,
+        rolling_friction: float = 0.1,
+        position_gain_scale: float = 1.0,
+        velocity_gain: float = 1.0,
+        solver_iterations: int = 50,
+        obstacle_height: float = 1.0,
+        self_collision: bool = True,
+        max_base_speed: float = 10.0,
+        camera_distance: float = 2.0,
+        camera_pitch: float = -35.0,
+    ):
+        for key, value in {"lateral_friction": lateral_friction, "spinning_friction": spinning_friction,
+                           "rolling_friction": rolling_friction, "velocity_gain": velocity_gain}.items():
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"backend.{key} must be a non-negative number, got {value!r}")
+        if not (math.isfinite(position_gain_scale) and position_gain_scale > 0):
+            raise ValueError(f"backend.position_gain_scale must be positive, got {position_gain_scale!r}")
+        if int(solver_iterations) < 1:
+            raise ValueError(f"backend.solver_iterations must be >= 1, got {solver_iterations!r}")
+        self.lateral_friction = float(lateral_friction)
+        self.spinning_friction = float(spinning_friction)
+        self.rolling_friction = float(rolling_friction)
+        self.position_gain_scale = float(position_gain_scale)
+        self.velocity_gain = float(velocity_gain)
+        self.solver_iterations = int(solver_iterations)
+        self.obstacle_height = float(obstacle_height)
+        self.self_collision = bool(self_collision)
+        self.max_base_speed = float(max_base_speed)
+        self.camera_distance, self.camera_pitch = float(camera_distance), float(camera_pitch)
+        self.client = -1
+        self._urdf_path: str | None = None
+        self._finalizer = None
+        self.robot_id = -1
+        self.obstacle_ids: list[int] = []
+        self._goal_marker = -1
+        self._scene: Scene | None = None
+
+    # -- world ----------------------------------------------------------------------------
+    def build(self, robot: RobotSpec, physics_dt: float) -> None:
+        self.spec, self.physics_dt = robot, float(physics_dt)
+        self.client = p.connect(p.DIRECT)
+        if self.client < 0:  # pragma: no cover
+            raise RuntimeError("pybullet: could not connect a DIRECT client")
+        fd, self._urdf_path = tempfile.mkstemp(prefix=f"footsim_{robot.name}_", suffix=".urdf")
+        with os.fdopen(fd, "w") as f:
+            f.write(urdf_xml(robot))
+        self._finalizer = weakref.finalize(self, _cleanup, self.client, self._urdf_path)
+        # Motor gains per joint (see the module docstring for the mapping).
+        self._gain = {j.name: min(1.0, self.position_gain_scale * j.servo.kp * self.physics_dt / max(j.servo.damping, 1e-6))
+                      for j in robot.joints}
+        self._self_collide = {link.name: any(s.self_collision for s in link.shapes) for link in robot.links}
+        self._build_world()
+
+    def _build_world(self) -> None:
+        """(Re)create floor and robot in an empty world; joint indices are mapped by name."""
+        c = self.client
+        p.resetSimulation(physicsClientId=c)
+        p.setGravity(0, 0, -9.81, physicsClientId=c)
+        p.setPhysicsEngineParameter(fixedTimeStep=self.physics_dt, numSolverIterations=self.solver_iterations,
+                                    numSubSteps=0, deterministicOverlappingPairs=1, physicsClientId=c)
+        floor_shape = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=c)
+        floor_visual = p.createVisualShape(p.GEOM_BOX, halfExtents=[25, 25, 0.001], visualFramePosition=[0, 0, -0.001],
+                                           rgbaColor=[0.35, 0.55, 0.35, 1], physicsClientId=c)
+        self.floor_id = p.createMultiBody(0, floor_shape, floor_visual, physicsClientId=c)
+        p.changeDynamics(self.floor_id, -1, lateralFriction=self.lateral_friction,
+                         spinningFriction=self.spinning_friction, rollingFriction=self.rolling_friction,
+                         physicsClientId=c)
+        p.setCollisionFilterGroupMask(self.floor_id, -1, _STATIC, _ROBOT, physicsClientId=c)
+        flags = (p.URDF_USE_INERTIA_FROM_FILE | p.URDF_USE_SELF_COLLISION
+                 | p.URDF_USE_SELF_COLLISION_EXCLUDE_PARENT)
+        self.robot_id = p.loadURDF(self._urdf_path, [0, 0, 1], flags=flags, physicsClientId=c)
+        self.joint_index: dict[str, int] = {}
+        self.link_index: dict[str, int] = {self.spec.base_link: -1}
+        for i in range(p.getNumJoints(self.robot_id, physicsClientId=c)):
+            info = p.getJointInfo(self.robot_id, i, physicsClientId=c)
+            self.link_index[info[12].decode()] = i
+            if info[2] == p.JOINT_REVOLUTE:
+                self.joint_index[info[1].decode()] = i
+        missing = sorted(set(self.spec.joint_names) - set(self.joint_index))
+        if missing:
+            raise RuntimeError(f"pybullet: the loaded URDF lacks joints {missing}")
+        # Self-collision only between the legs' self-colliding links (as in the MJCF model).
+        for name, link in self.link_index.items():
+            group, mask = _ROBOT, _STATIC
+            if self.self_collision and self._self_collide.get(name):
+                left = name.startswith("l_")
+                group |= _LEFT_LEG if left else _RIGHT_LEG
+                mask |= _RIGHT_LEG if left else _LEFT_LEG
+            p.setCollisionFilterGroupMask(self.robot_id, link, group, mask, physicsClientId=c)
+        # No explicit joint damping: Bullet applies it as an explicit torque, which diverges on the
+        # light foot links at 1/240 s (D·dt/I ≫ 2); the servo's damping is in the motor mapping.
+        for index in self.joint_index.values():
+            p.changeDynamics(self.robot_id, index, jointDamping=0.0, physicsClientId=c)
+        for foot in ("l_foot", "r_foot"):
+            if foot in self.link_index:
+                p.changeDynamics(self.robot_id, self.link_index[foot], lateralFriction=self.lateral_friction,
+                                 spinningFriction=self.spinning_friction, rollingFriction=self.rolling_friction,
+                                 physicsClientId=c)
+        # Base pose: Bullet reports the base's inertial frame; keep the link-frame offset.
+        dyn = p.getDynamicsInfo(self.robot_id, -1, physicsClientId=c)
+        self._com_pos = np.array(dyn[3])
+        self._com_orn = tuple(dyn[4])
+        self._com_rot = np.array(p.getMatrixFromQuaternion(self._com_orn)).reshape(3, 3)
+        # Motor arrays, in a fixed order: legs (LEG_JOINT_NAMES), then the rest.
+        self.leg_indices = [self.joint_index[n] for n in LEG_JOINT_NAMES]
+        self.leg_forces = [self.spec.joint(n).effort for n in LEG_JOINT_NAMES]
+        self.leg_gains = [self._gain[n] for n in LEG_JOINT_NAMES]
+        self.leg_vgains = [self.velocity_gain] * len(LEG_JOINT_NAMES)
+        self.other_names = [n for n in self.spec.joint_names if n not in LEG_JOINT_NAMES]
+        self.obstacle_ids = []
+        self._goal_marker = -1
+
+    def set_obstacles(self, scene: Scene) -> None:
+        self._scene = scene
+        self._build_world()  # fresh world per episode: determinism (see module docstring)
+        c = self.client
+        for obstacle, is_ball in [(o, False) for o in scene.obstacles] + (
+                [(scene.ball, True)] if scene.ball is not None else []):
+            if is_ball:
+                shape = p.createCollisionShape(p.GEOM_SPHERE, radius=obstacle.r, physicsClientId=c)
+                visual = p.createVisualShape(p.GEOM_SPHERE, radius=obstacle.r, rgbaColor=[1, 1, 1, 1],
+                                             physicsClientId=c)
+                z = obstacle.r
+            else:
+                shape = p.createCollisionShape(p.GEOM_CYLINDER, radius=obstacle.r, height=self.obstacle_height,
+                                               physicsClientId=c)
+                visual = p.createVisualShape(p.GEOM_CYLINDER, radius=obstacle.r, length=self.obstacle_height,
+                                             rgbaColor=[0.8, 0.25, 0.2, 1], physicsClientId=c)
+                z = self.obstacle_height / 2
+            body = p.createMultiBody(0, shape, visual, [obstacle.x, obstacle.y, z], physicsClientId=c)
+            p.setCollisionFilterGroupMask(body, -1, _STATIC, _ROBOT, physicsClientId=c)
+            self.obstacle_ids.append(body)
+
+    # -- robot ----------------------------------------------------------------------------
+    def reset_robot(self, base_position: np.ndarray, joint_positions: dict[str, float]) -> None:
+        c, body = self.client, self.robot_id
+        com = np.asarray(base_position, dtype=float) + self._com_pos  # upright: link frame = world axes
+        p.resetBasePositionAndOrientation(body, com.tolist(), self._com_orn, physicsClientId=c)
+        p.resetBaseVelocity(body, [0, 0, 0], [0, 0, 0], physicsClientId=c)
+        for name in self.spec.joint_names:
+            p.resetJointState(body, self.joint_index[name], float(joint_positions.get(name, 0.0)), 0.0,
+                              physicsClientId=c)
+        others = [self.joint_index[n] for n in self.other_names]
+        p.setJointMotorControlArray(
+            body, others, p.POSITION_CONTROL, targetPositions=[float(joint_positions.get(n, 0.0)) for n in self.other_names],
+            forces=[self.spec.joint(n).effort for n in self.other_names],
+            positionGains=[self._gain[n] for n in self.other_names],
+            velocityGains=[self.velocity_gain] * len(others), physicsClientId=c)
+
+    def set_leg_targets(self, targets: np.ndarray) -> None:
+        p.setJointMotorControlArray(self.robot_id, self.leg_indices, p.POSITION_CONTROL,
+                                    targetPositions=targets.tolist(), forces=self.leg_forces,
+                                    positionGains=self.leg_gains, velocityGains=self.leg_vgains,
+                                    physicsClientId=self.client)
+
+    def advance(self, n_steps: int) -> None:
+        c = self.client
+        for _ in range(n_steps):
+            p.stepSimulation(physicsClientId=c)
+
+    def base_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        pos, orn = p.getBasePositionAndOrientation(self.robot_id, physicsClientId=self.client)
+        rot = np.array(p.getMatrixFromQuaternion(orn)).reshape(3, 3) @ self._com_rot.T  # link frame
+        return np.asarray(pos) - rot @ self._com_pos, rot
+
+    def joint_positions(self) -> dict[str, float]:
+        states = p.getJointStates(self.robot_id, [self.joint_index[n] for n in self.spec.joint_names],
+                                  physicsClientId=self.client)
+        return {n: s[0] for n, s in zip(self.spec.joint_names, states)}
+
+    # -- events ---------------------------------------------------------------------------
+    def obstacle_contact(self) -> bool:
+        c, body = self.client, self.robot_id
+        return any(p.getContactPoints(body, ob, physicsClientId=c) for ob in self.obstacle_ids)
+
+    def sim_error(self) -> str | None:
+        pos, orn = p.getBasePositionAndOrientation(self.robot_id, physicsClientId=self.client)
+        lin, ang = p.getBaseVelocity(self.robot_id, physicsClientId=self.client)
+        values = (*pos, *orn, *lin, *ang)
+        if not all(math.isfinite(v) for v in values):
+            return "non-finite base state"
+        if math.hypot(*lin) > self.max_base_speed or math.hypot(*ang) > 6 * self.max_base_speed:
+            return "exploding base velocity"
+        return None
+
+    # -- rendering ------------------------------------------------------------------------
+    def render(self, overlay: RenderOverlay | None, width: int, height: int) -> np.ndarray | None:
+        c = self.client
+        if overlay is not None:
+            if self._goal_marker < 0:
+                disc = p.createVisualShape(p.GEOM_CYLINDER, radius=0.12, length=0.01, rgbaColor=[1.0, 0.85, 0.0, 1],
+                                           physicsClientId=c)
+                self._goal_marker = p.createMultiBody(0, -1, disc, [0, 0, 0.005], physicsClientId=c)
+                arrow = p.createVisualShape(p.GEOM_BOX, halfExtents=[0.12, 0.02, 0.006],
+                                            rgbaColor=[0.9, 0.4, 0.0, 1], physicsClientId=c)
+                self._goal_arrow = p.createMultiBody(0, -1, arrow, [0, 0, 0.012], physicsClientId=c)
+            g = overlay.goal
+            orn = p.getQuaternionFromEuler([0, 0, g.theta])
+            p.resetBasePositionAndOrientation(self._goal_marker, [g.x, g.y, 0.005], orn, physicsClientId=c)
+            p.resetBasePositionAndOrientation(self._goal_arrow, [g.x + 0.1 * math.cos(g.theta),
+                                                                 g.y + 0.1 * math.sin(g.theta), 0.012], orn,
+                                              physicsClientId=c)
+        position, rotation = self.base_pose()
+        target = [float(position[0]), float(position[1]), 0.25]
+        if overlay is not None:  # frame the robot and the goal
+            target = [0.5 * (target[0] + overlay.goal.x), 0.5 * (target[1] + overlay.goal.y), 0.25]
+        spread = 0.0 if overlay is None else math.hypot(overlay.goal.x - position[0], overlay.goal.y - position[1])
+        yaw = math.degrees(math.atan2(rotation[1, 0], rotation[0, 0])) - 90.0
+        view = p.computeViewMatrixFromYawPitchRoll(target, self.camera_distance + 0.8 * spread, yaw,
+                                                   self.camera_pitch, 0, 2, physicsClientId=c)
+        proj = p.computeProjectionMatrixFOV(60, width / height, 0.05, 50.0, physicsClientId=c)
+        _, _, rgba, _, _ = p.getCameraImage(width, height, view, proj, renderer=p.ER_TINY_RENDERER,
+                                            flags=p.ER_NO_SEGMENTATION_MASK, physicsClientId=c)
+        return np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[:, :, :3].copy()
+
+    def close(self) -> None:
+        if self._finalizer is not None:
+            self._finalizer()  # disconnect and remove the URDF file (idempotent)
+        self.client = -1
+
+
+class PybulletBackend(Physics3DBackend):
+    """The shared 3D driver on PyBullet.  Options: see ``conf/backend/pybullet.yaml``."""
+
+    name = "pybullet"
+    capabilities = frozenset()
+
+    _SIM_OPTIONS = ("self_collision", "lateral_friction", "spinning_friction", "rolling_friction", "position_gain_scale",
+                    "velocity_gain", "solver_iterations", "obstacle_height", "max_base_speed", "camera_distance",
+                    "camera_pitch")
+
+    def __init__(self, robot: RobotSpec, walk: WalkParams, **options):
+        sim_options = {k: options.pop(k) for k in self._SIM_OPTIONS if k in options}
+        options.setdefault("control_dt", 1.0 / 240.0)
+        options.setdefault("physics_dt", 1.0 / 240.0)
+        if "render_size" in options:
+            options["render_size"] = tuple(options["render_size"])
+        sim = PybulletSim(**sim_options)
+        try:
+            super().__init__(robot, walk, sim, **options)
+        except BaseException:
+            sim.close()
+            raise
