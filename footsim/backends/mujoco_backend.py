@@ -47,8 +47,15 @@ _FATAL_WARNINGS = ("mjWARN_BADQACC", "mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN
 class MujocoSim(PhysicsSim):
     """``PhysicsSim`` on the ``mujoco`` bindings (position actuators, implicitfast)."""
 
-    def __init__(self, integrator: str = "implicitfast", max_render_size: int = 1024):
+    def __init__(self, integrator: str = "implicitfast", max_render_size: int = 1024,
+                 torsional_friction: float | None = None, servo_kp_scale: float = 1.0):
+        if torsional_friction is not None and not (math.isfinite(torsional_friction) and torsional_friction >= 0):
+            raise ValueError(f"backend.torsional_friction must be >= 0 (or null), got {torsional_friction!r}")
+        if not (math.isfinite(servo_kp_scale) and servo_kp_scale > 0):
+            raise ValueError(f"backend.servo_kp_scale must be > 0, got {servo_kp_scale!r}")
         self.integrator = integrator
+        self.torsional_friction = torsional_friction
+        self.servo_kp_scale = float(servo_kp_scale)
         self.max_render_size = int(max_render_size)
         self.model = self.data = None
         self._renderer = None
@@ -76,8 +83,17 @@ class MujocoSim(PhysicsSim):
             )
             geom.contype = geom.conaffinity = _OBSTACLE_BIT
         self.model = m = spec.compile()
-        self.data = d = mujoco.MjData(m)
         self.robot = robot
+        if self.torsional_friction is not None:  # feet: torsional friction (condim 4) against spinning
+            feet = {mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, robot.foot_link(s)) for s in ("left", "right")}
+            for g in range(m.ngeom):
+                if int(m.geom_bodyid[g]) in feet:
+                    m.geom_condim[g] = 4
+                    m.geom_friction[g, 1] = self.torsional_friction
+        if self.servo_kp_scale != 1.0:  # position actuators: force = kp (ctrl - q)
+            m.actuator_gainprm[:, 0] *= self.servo_kp_scale
+            m.actuator_biasprm[:, 1] *= self.servo_kp_scale
+        self.data = d = mujoco.MjData(m)
 
         def jid(name):
             i = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)
@@ -203,9 +219,9 @@ class MujocoSim(PhysicsSim):
             self._camera = mujoco.MjvCamera()
             self._camera.type = mujoco.mjtCamera.mjCAMERA_TRACKING
             self._camera.trackbodyid = self.torso
-            self._camera.distance = 2.2
-            self._camera.elevation = -35.0
-            self._camera.azimuth = 135.0
+            self._camera.distance = 2.5
+            self._camera.elevation = -30.0
+            self._camera.azimuth = -150.0  # behind-left of a robot facing +x, looking forward
         renderer = self._renderer
         renderer.update_scene(self.data, camera=self._camera)
         if overlay is not None:
@@ -270,9 +286,11 @@ class MujocoBackend(Physics3DBackend):
         out_of_bounds: float = 50.0,
         render_size=(480, 480),
         integrator: str = "implicitfast",
+        torsional_friction: float | None = None,
+        servo_kp_scale: float = 1.0,
     ):
         super().__init__(
-            robot, walk, MujocoSim(integrator=integrator), control_dt=control_dt, physics_dt=physics_dt,
+            robot, walk, MujocoSim(integrator=integrator, torsional_friction=torsional_friction, servo_kp_scale=servo_kp_scale), control_dt=control_dt, physics_dt=physics_dt,
             fall_threshold=fall_threshold, collision_ends_episode=collision_ends_episode,
             contact_check_every=contact_check_every, settle_time=settle_time, out_of_bounds=out_of_bounds,
             render_size=tuple(render_size),

@@ -1,0 +1,102 @@
+"""Tune the walk parameters of a 3D backend against the walk-check sequences (Optuna TPE).
+
+    python scripts/tune_walk.py backend=mujoco trials=300 out=/tmp/tune_mujoco.db
+
+Objective (minimised), per sequence of ``footsim.walkcheck.standard_sequences()``: a fall or a
+sim error costs ``2 + the share of double steps not executed``; otherwise the displacement
+error ratio against the 2D backend's displacement (the walk check's pass criterion is < 0.25).
+Search ranges: the Bit-Bots' (shared/FACTS.md), widened where our model needs it.  The best
+parameters are printed as YAML for ``conf/walk/<backend>.yaml``.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+
+from footsim import config as fconf
+from footsim.walkcheck import _error_ratio, make_backend, run_sequence, standard_sequences
+
+RANGES = {
+    "freq": (0.8, 2.5),
+    "double_support_ratio": (0.0, 0.5),
+    "foot_distance": (0.15, 0.25),
+    "foot_rise": (0.03, 0.12),
+    "trunk_height": (0.33, 0.42),
+    "trunk_pitch": (-0.3, 0.4),
+    "trunk_pitch_p_coef_forward": (-2.0, 2.0),
+    "trunk_pitch_p_coef_turn": (-0.5, 0.5),
+    "trunk_swing": (0.0, 1.0),
+    "trunk_phase": (-0.5, 0.5),
+    "trunk_x_offset": (-0.05, 0.05),
+    "trunk_y_offset": (-0.03, 0.03),
+    "trunk_z_movement": (0.0, 0.04),
+    "first_step_swing_factor": (0.3, 2.0),
+}
+
+
+def evaluate(backend_name: str, walk: dict, backend_options: dict, commanded: dict, sequences) -> tuple[float, dict]:
+    robot = fconf.build_robot("wolfgang")
+    cfg = fconf.load_preset("backend", {"name": backend_name, **backend_options})
+    try:
+        backend = fconf.build_backend(cfg, robot, fconf.build_walk(walk))
+    except ValueError as err:  # e.g. feet overlapping at rest
+        return 3.0 * len(sequences), {"invalid": str(err)[:80]}
+    cost, detail = 0.0, {}
+    try:
+        for seq in sequences:
+            result = run_sequence(backend, seq)
+            if result["fell"] or result["sim_error"]:
+                c = 2.0 + 1.0 - result["steps"] / len(seq.actions)
+            else:
+                c = min(_error_ratio(result, commanded[seq.name], seq.measure), 2.0)
+            detail[seq.name] = round(c, 3)
+            cost += c
+    finally:
+        backend.close()
+    return cost, detail
+
+
+def main(argv: list[str]) -> None:
+    import optuna
+
+    args = dict(a.split("=", 1) for a in argv)
+    name = args.get("backend", "mujoco")
+    trials = int(args.get("trials", "200"))
+    storage = f"sqlite:///{args['out']}" if "out" in args else None
+    sequences = standard_sequences()
+    pymunk = make_backend("pymunk")
+    commanded = {seq.name: run_sequence(pymunk, seq) for seq in sequences}
+    base = fconf.load_preset("walk", fconf.walk_preset_for(name))
+
+    def objective(trial):
+        walk = dict(base)
+        for key, (lo, hi) in RANGES.items():
+            walk[key] = trial.suggest_float(key, lo, hi)
+        options = {"physics_dt": trial.suggest_categorical("physics_dt", [0.005, 0.01]), "control_dt": 0.01,
+                   "torsional_friction": trial.suggest_float("torsional_friction", 0.005, 0.1, log=True),
+                   "servo_kp_scale": trial.suggest_float("servo_kp_scale", 1.0, 5.0, log=True)}
+        cost, detail = evaluate(name, walk, options, commanded, sequences)
+        trial.set_user_attr("detail", detail)
+        return cost
+
+    study = optuna.create_study(direction="minimize", sampler=optuna.samplers.TPESampler(seed=int(args.get("seed", 0)), multivariate=True),
+                                storage=storage, study_name=f"walk_{name}", load_if_exists=True)
+    if len(study.trials) == 0:
+        study.enqueue_trial({k: base[k] for k in RANGES} | {"physics_dt": 0.005, "torsional_friction": 0.05, "servo_kp_scale": 1.0})
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+
+    def report(study, trial):
+        if trial.value is not None and trial.number % 10 == 0 or study.best_trial.number == trial.number:
+            print(f"trial {trial.number}: {trial.value:.3f} best {study.best_value:.3f} {study.best_trial.user_attrs.get('detail')}", flush=True)
+
+    study.optimize(objective, n_trials=trials, callbacks=[report])
+    best = study.best_trial
+    print("# best", best.value, best.user_attrs.get("detail"))
+    for key, value in best.params.items():
+        print(f"{key}: {value:.4f}" if isinstance(value, float) else f"{key}: {value}")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

@@ -1,0 +1,188 @@
+"""MuJoCo backend: env checkers, walking, determinism, name mapping, faults, contacts, memory."""
+
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+mujoco = pytest.importorskip("mujoco")
+
+from gymnasium.utils.env_checker import check_env as gym_check_env  # noqa: E402
+from stable_baselines3.common.env_checker import check_env as sb3_check_env  # noqa: E402
+
+import footsim  # noqa: E402,F401  (registers the env)
+from footsim.backends.mujoco_backend import N_CYLINDERS, MujocoBackend  # noqa: E402
+from footsim.env import FootstepEnv  # noqa: E402
+from footsim.geometry import Pose2D  # noqa: E402
+from footsim.tasks.scenes import Obstacle, Scene  # noqa: E402
+from footsim.walk.footsteps import DoubleStep  # noqa: E402
+from footsim.walk.ik import LEG_JOINT_NAMES  # noqa: E402
+from footsim.walkcheck import make_backend  # noqa: E402
+
+EMPTY = Scene(goal=Pose2D(100.0, 0.0, 0.0))
+FORWARD = np.array([0.5, 0.0, 0.0, 0.5, 0.0, 0.0])
+
+
+@pytest.fixture(scope="module")
+def backend():
+    b = make_backend("mujoco")
+    yield b
+    b.close()
+
+
+def test_env_checkers_pass():
+    env = gym.make("footsim/FootstepNav-v0", backend="mujoco", obstacles=True)
+    try:
+        gym_check_env(env.unwrapped, skip_render_check=True)
+    finally:
+        env.close()
+    env = FootstepEnv(backend="mujoco")
+    try:
+        sb3_check_env(env)
+    finally:
+        env.close()
+
+
+def test_render_rgb_frame():
+    env = FootstepEnv(backend={"name": "mujoco", "render_size": [160, 120]}, obstacles=True, render_mode="rgb_array")
+    try:
+        env.reset(seed=3)
+        frame = env.render()
+    finally:
+        env.close()
+    assert frame.shape == (120, 160, 3) and frame.dtype == np.uint8
+    assert frame.std() > 5.0  # not blank
+    assert len(np.unique(frame.reshape(-1, 3), axis=0)) > 50
+
+
+def test_short_walk_moves_forward_without_falling(backend):
+    start = backend.reset(EMPTY, np.random.default_rng(0))
+    for _ in range(5):
+        result = backend.execute(DoubleStep.from_action(FORWARD, backend.robot.step_limits))
+        assert not result.fell and result.sim_error is None
+    assert result.pose.x - start.x > 0.4  # 5 double steps of ~0.16 m commanded (first one shorter)
+    assert abs(result.pose.y - start.y) < 0.25
+
+
+def _trajectory(seed):
+    env = FootstepEnv(backend="mujoco", obstacles=True)
+    try:
+        env.reset(seed=seed)
+        rng = np.random.default_rng(seed)
+        poses = []
+        for _ in range(4):
+            obs, r, term, trunc, info = env.step(rng.uniform(-0.5, 0.5, 6))
+            poses.append(np.concatenate([info["pose"], obs]))
+        return np.array(poses)
+    finally:
+        env.close()
+
+
+def test_same_seed_identical_trajectory():
+    a, b = _trajectory(7), _trajectory(7)
+    np.testing.assert_array_equal(a, b)  # bit-identical poses and observations
+
+
+def test_joint_name_mapping(backend):
+    sim = backend.sim
+    m = sim.model
+    for name in backend.robot.joint_names:
+        jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)
+        aid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
+        assert jid >= 0 and aid >= 0, name
+        assert m.actuator_trnid[aid, 0] == jid
+        assert sim.joint_qpos[name] == m.jnt_qposadr[jid]
+    # targets reach the right joints: a distinct target per leg joint, held until converged
+    backend.reset(EMPTY, np.random.default_rng(0))
+    base = backend.engine.standing_joint_targets()
+    targets = base + np.linspace(-0.06, 0.06, 12)
+    sim.set_leg_targets(targets)
+    for name, target in zip(LEG_JOINT_NAMES, targets):
+        assert sim.data.ctrl[sim.actuator[name]] == target
+    # lift the robot off the ground so gravity does not bias the joints
+    sim.model.opt.gravity[:] = 0.0
+    try:
+        sim.data.qpos[2] += 0.3
+        sim.advance(400)
+        reached = np.array([sim.data.qpos[sim.joint_qpos[n]] for n in LEG_JOINT_NAMES])
+    finally:
+        sim.model.opt.gravity[:] = (0.0, 0.0, -9.81)
+    np.testing.assert_allclose(reached, targets, atol=0.03)
+    assert np.argsort(reached).tolist() == np.argsort(targets).tolist()
+
+
+def test_blow_up_is_a_sim_error_with_finite_observation():
+    env = FootstepEnv(backend="mujoco")
+    try:
+        env.reset(seed=1)
+        env.backend.sim.data.qvel[:] = np.nan
+        obs, reward, term, trunc, info = env.step(FORWARD)
+        assert term and info["outcome"] == "sim_error" and "sim_error" in info
+        assert np.all(np.isfinite(obs)) and np.isfinite(reward)
+        env.reset(seed=2)  # and the env recovers on reset
+        env.backend.sim.data.qvel[6:] = 1e12  # a huge velocity: MuJoCo's own instability warning
+        obs, reward, term, trunc, info = env.step(FORWARD)
+        assert term and info["outcome"] == "sim_error"
+        assert np.all(np.isfinite(obs))
+    finally:
+        env.close()
+
+
+def test_obstacle_contact_is_reported_and_does_not_end_the_episode():
+    scene = Scene(goal=Pose2D(2.0, 0.0, 0.0), obstacles=(Obstacle(0.35, 0.0, 0.15),))
+    env = FootstepEnv(backend="mujoco", obstacles=True)
+    try:
+        env.reset(seed=0, options={"scene": scene})
+        collided = False
+        for _ in range(6):
+            obs, r, term, trunc, info = env.step(FORWARD)
+            collided = collided or info["collided"]
+            if collided or term:
+                break
+        assert collided
+        assert info["outcome"] != "collision"  # 3D: reported, not terminal (collision_ends_episode false)
+    finally:
+        env.close()
+
+
+def test_obstacle_pool_is_placed_and_parked(backend):
+    sim = backend.sim
+    scene = Scene(goal=Pose2D(3.0, 0.0, 0.0), obstacles=(Obstacle(1.0, 0.5, 0.2), Obstacle(2.0, -0.5, 0.3)),
+                  ball=Obstacle(1.5, 0.0, 0.075))
+    backend.reset(scene, np.random.default_rng(0))
+    geoms = sim._obstacle_geoms
+    np.testing.assert_allclose(sim.model.geom_pos[geoms[0], :2], (1.0, 0.5))
+    np.testing.assert_allclose(sim.model.geom_size[geoms[1], 0], 0.3)
+    np.testing.assert_allclose(sim.model.geom_pos[geoms[-1]], (1.5, 0.0, 0.075))
+    assert all(sim.model.geom_contype[g] == 0 for g in geoms[2:N_CYLINDERS])
+    assert not sim.obstacle_contact()
+    with pytest.raises(ValueError, match="at most"):
+        sim.set_obstacles(Scene(goal=Pose2D(), obstacles=tuple(Obstacle(i, 5.0, 0.1) for i in range(N_CYLINDERS + 1))))
+
+
+def _rss_mb():
+    psutil = pytest.importorskip("psutil")
+    return psutil.Process(os.getpid()).memory_info().rss / 2**20
+
+
+def test_many_resets_and_create_close_cycles_do_not_leak(backend):
+    for _ in range(50):  # warm up allocators
+        backend.reset(EMPTY, np.random.default_rng(0))
+    before = _rss_mb()
+    rng = np.random.default_rng(0)
+    for i in range(1000):
+        scene = Scene(goal=Pose2D(1.0, 0.0, 0.0), obstacles=(Obstacle(2.0, float(rng.uniform(-1, 1)), 0.2),),
+                      ball=Obstacle(1.2, 0.0, 0.075) if i % 2 else None)
+        backend.reset(scene, rng)
+    after_resets = _rss_mb()
+    for _ in range(10):
+        MujocoBackend(backend.robot, backend.walk).close()
+    mid = _rss_mb()
+    for _ in range(60):
+        MujocoBackend(backend.robot, backend.walk).close()
+    end = _rss_mb()
+    assert after_resets - before < 10.0
+    assert end - mid < 20.0, f"RSS grew {end - mid:.1f} MB over 60 create/close cycles"
