@@ -37,6 +37,7 @@ RANGES = {
     "trunk_pitch_p_coef_forward": (-1.0, 1.0),
     "trunk_pitch_p_coef_turn": (-0.5, 0.5),
     "first_step_swing_factor": (0.5, 2.0),
+    "backend.position_gain_scale": (1.0, 8.0),
 }
 
 
@@ -105,6 +106,9 @@ def main(argv: list[str]) -> None:
     scale = opts.get("scale", 0.15)
     base = fconf.load_preset("walk", fconf.walk_preset_for("pybullet"))
     base.update(walk_over)
+    backend_base = fconf.load_preset("backend", "pybullet")
+    base.update({f"backend.{k}": v for k, v in backend_base.items() if f"backend.{k}" in RANGES})
+    base.update({f"backend.{k}": v for k, v in backend_over.items()})
     best = (-1, math.inf, {})
     for trial in range(int(opts.get("trials", 20))):
         cand = {}
@@ -114,7 +118,9 @@ def main(argv: list[str]) -> None:
                 if rng.random() < 0.4:
                     cand[key] = float(np.clip(start[key] + rng.normal(0, scale * (hi - lo)), lo, hi))
             cand = {**best[2], **cand}
-        passed, err, _ = evaluate(cand, backend_over, sequences, commanded, stop_at_failure=True)
+        walk_c = {k: v for k, v in cand.items() if not k.startswith("backend.")}
+        back_c = {**backend_over, **{k[8:]: v for k, v in cand.items() if k.startswith("backend.")}}
+        passed, err, _ = evaluate(walk_c, back_c, sequences, commanded, stop_at_failure=False)
         if (passed, -err) > (best[0], -best[1]):
             best = (passed, err, cand)
         print(f"trial {trial}: passed {passed} err {err:.3f} | best {best[0]} {best[1]:.3f} "

@@ -36,10 +36,13 @@ contact caches left by earlier episodes.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
+import sys
 import tempfile
 import weakref
+import xml.etree.ElementTree as ET
 
 import numpy as np
 import pybullet as p
@@ -47,13 +50,66 @@ import pybullet as p
 from footsim.backends.base import RenderOverlay
 from footsim.backends.physics3d import Physics3DBackend, PhysicsSim
 from footsim.robots.spec import Box, Capsule, Cylinder, RobotSpec, Sphere
-from footsim.robots.urdf import urdf_xml
+from footsim.robots.urdf import build_urdf
 from footsim.tasks.scenes import Scene
 from footsim.walk.ik import LEG_JOINT_NAMES
 from footsim.walk.params import WalkParams
 
 # Collision groups / masks (collide when group_a & mask_b and group_b & mask_a).
 _ROBOT, _STATIC, _LEFT_LEG, _RIGHT_LEG = 1, 2, 4, 8
+
+
+@contextlib.contextmanager
+def _quiet():
+    """Silence Bullet's C-level stdout chatter (URDF merge log, importer warnings)."""
+    try:
+        sys.stdout.flush()
+        saved = os.dup(1)
+    except (OSError, ValueError):  # no real stdout (e.g. captured): nothing to silence
+        yield
+        return
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 1)
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+        os.close(devnull)
+
+
+def _rpy(rotation: np.ndarray) -> tuple[float, float, float]:
+    """URDF roll-pitch-yaw of a rotation matrix (R = Rz(y) Ry(p) Rx(r))."""
+    pitch = math.asin(max(-1.0, min(1.0, -float(rotation[2, 0]))))
+    return (math.atan2(rotation[2, 1], rotation[2, 2]), pitch, math.atan2(rotation[1, 0], rotation[0, 0]))
+
+
+def model_urdf(spec: RobotSpec, rigid_upper_body: bool) -> str:
+    """The spec's URDF; with ``rigid_upper_body`` the arm and head joints become fixed joints at
+    the walk-ready angles (folded into the joint origin), so Bullet merges them into the torso."""
+    robot = build_urdf(spec)
+    if rigid_upper_body:
+        legs = set(LEG_JOINT_NAMES)
+        for element in robot.findall("joint"):
+            name = element.get("name")
+            if element.get("type") != "revolute" or name in legs:
+                continue
+            joint = spec.joint(name)
+            rotation = joint.origin.rotation @ _axis_rotation(np.asarray(joint.axis), spec.walk_ready.get(name, 0.0))
+            element.set("type", "fixed")
+            for tag in ("axis", "limit", "dynamics"):
+                child = element.find(tag)
+                if child is not None:
+                    element.remove(child)
+            element.find("origin").set("rpy", " ".join(f"{v:.9g}" for v in _rpy(rotation)))
+    ET.indent(robot)
+    return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
+
+
+def _axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
+    x, y, z = axis
+    k = np.array([[0, -z, y], [z, 0, -x], [-y, x, 0]])
+    return np.eye(3) + math.sin(angle) * k + (1 - math.cos(angle)) * (k @ k)
 
 
 def _cleanup(client: int, path: str | None) -> None:
@@ -82,6 +138,7 @@ class PybulletSim(PhysicsSim):
         solver_iterations: int = 50,
         obstacle_height: float = 1.0,
         self_collision: bool = True,
+        rigid_upper_body: bool = True,
         max_base_speed: float = 10.0,
         camera_distance: float = 2.0,
         camera_pitch: float = -35.0,
@@ -102,6 +159,7 @@ class PybulletSim(PhysicsSim):
         self.solver_iterations = int(solver_iterations)
         self.obstacle_height = float(obstacle_height)
         self.self_collision = bool(self_collision)
+        self.rigid_upper_body = bool(rigid_upper_body)
         self.max_base_speed = float(max_base_speed)
         self.camera_distance, self.camera_pitch = float(camera_distance), float(camera_pitch)
         self.client = -1
@@ -120,7 +178,7 @@ class PybulletSim(PhysicsSim):
             raise RuntimeError("pybullet: could not connect a DIRECT client")
         fd, self._urdf_path = tempfile.mkstemp(prefix=f"footsim_{robot.name}_", suffix=".urdf")
         with os.fdopen(fd, "w") as f:
-            f.write(urdf_xml(robot))
+            f.write(model_urdf(robot, self.rigid_upper_body))
         self._finalizer = weakref.finalize(self, _cleanup, self.client, self._urdf_path)
         # Motor gains per joint (see the module docstring for the mapping).
         self._gain = {j.name: min(1.0, self.position_gain_scale * j.servo.kp * self.physics_dt / max(j.servo.damping, 1e-6))
@@ -144,8 +202,9 @@ class PybulletSim(PhysicsSim):
                          physicsClientId=c)
         p.setCollisionFilterGroupMask(self.floor_id, -1, _STATIC, _ROBOT, physicsClientId=c)
         flags = (p.URDF_USE_INERTIA_FROM_FILE | p.URDF_USE_SELF_COLLISION
-                 | p.URDF_USE_SELF_COLLISION_EXCLUDE_PARENT)
-        self.robot_id = p.loadURDF(self._urdf_path, [0, 0, 1], flags=flags, physicsClientId=c)
+                 | p.URDF_USE_SELF_COLLISION_EXCLUDE_PARENT | p.URDF_MERGE_FIXED_LINKS)
+        with _quiet():
+            self.robot_id = p.loadURDF(self._urdf_path, [0, 0, 1], flags=flags, physicsClientId=c)
         self.joint_index: dict[str, int] = {}
         self.link_index: dict[str, int] = {self.spec.base_link: -1}
         for i in range(p.getNumJoints(self.robot_id, physicsClientId=c)):
@@ -153,7 +212,8 @@ class PybulletSim(PhysicsSim):
             self.link_index[info[12].decode()] = i
             if info[2] == p.JOINT_REVOLUTE:
                 self.joint_index[info[1].decode()] = i
-        missing = sorted(set(self.spec.joint_names) - set(self.joint_index))
+        self.joint_names = [n for n in self.spec.joint_names if n in LEG_JOINT_NAMES or not self.rigid_upper_body]
+        missing = sorted(set(self.joint_names) - set(self.joint_index))
         if missing:
             raise RuntimeError(f"pybullet: the loaded URDF lacks joints {missing}")
         # Self-collision only between the legs' self-colliding links (as in the MJCF model).
@@ -171,7 +231,6 @@ class PybulletSim(PhysicsSim):
         for foot in ("l_foot", "r_foot"):
             if foot in self.link_index:
                 p.changeDynamics(self.robot_id, self.link_index[foot], lateralFriction=self.lateral_friction,
-                                 spinningFriction=self.spinning_friction, rollingFriction=self.rolling_friction,
                                  physicsClientId=c)
         # Base pose: Bullet reports the base's inertial frame; keep the link-frame offset.
         dyn = p.getDynamicsInfo(self.robot_id, -1, physicsClientId=c)
@@ -183,7 +242,7 @@ class PybulletSim(PhysicsSim):
         self.leg_forces = [self.spec.joint(n).effort for n in LEG_JOINT_NAMES]
         self.leg_gains = [self._gain[n] for n in LEG_JOINT_NAMES]
         self.leg_vgains = [self.velocity_gain] * len(LEG_JOINT_NAMES)
-        self.other_names = [n for n in self.spec.joint_names if n not in LEG_JOINT_NAMES]
+        self.other_names = [n for n in self.joint_names if n not in LEG_JOINT_NAMES]
         self.obstacle_ids = []
         self._goal_marker = -1
 
@@ -214,15 +273,17 @@ class PybulletSim(PhysicsSim):
         com = np.asarray(base_position, dtype=float) + self._com_pos  # upright: link frame = world axes
         p.resetBasePositionAndOrientation(body, com.tolist(), self._com_orn, physicsClientId=c)
         p.resetBaseVelocity(body, [0, 0, 0], [0, 0, 0], physicsClientId=c)
-        for name in self.spec.joint_names:
+        for name in self.joint_names:
             p.resetJointState(body, self.joint_index[name], float(joint_positions.get(name, 0.0)), 0.0,
                               physicsClientId=c)
         others = [self.joint_index[n] for n in self.other_names]
-        p.setJointMotorControlArray(
-            body, others, p.POSITION_CONTROL, targetPositions=[float(joint_positions.get(n, 0.0)) for n in self.other_names],
-            forces=[self.spec.joint(n).effort for n in self.other_names],
-            positionGains=[self._gain[n] for n in self.other_names],
-            velocityGains=[self.velocity_gain] * len(others), physicsClientId=c)
+        if others:
+            p.setJointMotorControlArray(
+                body, others, p.POSITION_CONTROL,
+                targetPositions=[float(joint_positions.get(n, 0.0)) for n in self.other_names],
+                forces=[self.spec.joint(n).effort for n in self.other_names],
+                positionGains=[self._gain[n] for n in self.other_names],
+                velocityGains=[self.velocity_gain] * len(others), physicsClientId=c)
 
     def set_leg_targets(self, targets: np.ndarray) -> None:
         p.setJointMotorControlArray(self.robot_id, self.leg_indices, p.POSITION_CONTROL,
@@ -241,9 +302,9 @@ class PybulletSim(PhysicsSim):
         return np.asarray(pos) - rot @ self._com_pos, rot
 
     def joint_positions(self) -> dict[str, float]:
-        states = p.getJointStates(self.robot_id, [self.joint_index[n] for n in self.spec.joint_names],
+        states = p.getJointStates(self.robot_id, [self.joint_index[n] for n in self.joint_names],
                                   physicsClientId=self.client)
-        return {n: s[0] for n, s in zip(self.spec.joint_names, states)}
+        return {n: s[0] for n, s in zip(self.joint_names, states)}
 
     # -- events ---------------------------------------------------------------------------
     def obstacle_contact(self) -> bool:
@@ -302,7 +363,7 @@ class PybulletBackend(Physics3DBackend):
     name = "pybullet"
     capabilities = frozenset()
 
-    _SIM_OPTIONS = ("self_collision", "lateral_friction", "spinning_friction", "rolling_friction", "position_gain_scale",
+    _SIM_OPTIONS = ("self_collision", "rigid_upper_body", "lateral_friction", "spinning_friction", "rolling_friction", "position_gain_scale",
                     "velocity_gain", "solver_iterations", "obstacle_height", "max_base_speed", "camera_distance",
                     "camera_pitch")
 
