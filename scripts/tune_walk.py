@@ -18,22 +18,29 @@ import numpy as np
 from footsim import config as fconf
 from footsim.walkcheck import _error_ratio, make_backend, run_sequence, standard_sequences
 
+# Walk ranges around a hand-found working point (freq 1.0, trunk_pitch 0, trunk_x_offset -0.01,
+# trunk_swing 0.4): the Bit-Bots' full ranges (FACTS.md) mostly fall within a step on our model.
 RANGES = {
-    "freq": (0.8, 2.5),
-    "double_support_ratio": (0.0, 0.5),
-    "foot_distance": (0.15, 0.25),
-    "foot_rise": (0.03, 0.12),
-    "trunk_height": (0.33, 0.42),
-    "trunk_pitch": (-0.3, 0.4),
-    "trunk_pitch_p_coef_forward": (-2.0, 2.0),
-    "trunk_pitch_p_coef_turn": (-0.5, 0.5),
-    "trunk_swing": (0.0, 1.0),
-    "trunk_phase": (-0.5, 0.5),
-    "trunk_x_offset": (-0.05, 0.05),
-    "trunk_y_offset": (-0.03, 0.03),
-    "trunk_z_movement": (0.0, 0.04),
-    "first_step_swing_factor": (0.3, 2.0),
+    "freq": (0.8, 1.4),
+    "double_support_ratio": (0.0, 0.2),
+    "foot_distance": (0.17, 0.22),
+    "foot_rise": (0.03, 0.07),
+    "trunk_height": (0.35, 0.39),
+    "trunk_pitch": (-0.1, 0.25),
+    "trunk_pitch_p_coef_forward": (-1.0, 1.0),
+    "trunk_pitch_p_coef_turn": (-0.3, 0.3),
+    "trunk_swing": (0.2, 0.8),
+    "trunk_phase": (-0.3, 0.3),
+    "trunk_x_offset": (-0.03, 0.02),
+    "trunk_y_offset": (-0.01, 0.01),
+    "trunk_z_movement": (0.0, 0.02),
+    "first_step_swing_factor": (0.5, 1.5),
 }
+START = {"freq": 1.0, "double_support_ratio": 0.05, "foot_distance": 0.1799, "foot_rise": 0.05, "trunk_height": 0.37,
+         "trunk_pitch": 0.0, "trunk_pitch_p_coef_forward": -0.186, "trunk_pitch_p_coef_turn": -0.457 / 2,
+         "trunk_swing": 0.4, "trunk_phase": -0.1517, "trunk_x_offset": -0.01, "trunk_y_offset": 0.0037,
+         "trunk_z_movement": 0.0155, "first_step_swing_factor": 1.0,
+         "physics_dt": 0.005, "torsional_friction": 0.05, "servo_kp_scale": 2.0, "servo_damping_scale": 0.3}
 
 
 def evaluate(backend_name: str, walk: dict, backend_options: dict, commanded: dict, sequences) -> tuple[float, dict]:
@@ -75,8 +82,9 @@ def main(argv: list[str]) -> None:
         for key, (lo, hi) in RANGES.items():
             walk[key] = trial.suggest_float(key, lo, hi)
         options = {"physics_dt": trial.suggest_categorical("physics_dt", [0.005, 0.01]), "control_dt": 0.01,
-                   "torsional_friction": trial.suggest_float("torsional_friction", 0.005, 0.1, log=True),
-                   "servo_kp_scale": trial.suggest_float("servo_kp_scale", 1.0, 5.0, log=True)}
+                   "torsional_friction": trial.suggest_float("torsional_friction", 0.02, 0.1, log=True),
+                   "servo_kp_scale": trial.suggest_float("servo_kp_scale", 1.5, 3.0),
+                   "servo_damping_scale": trial.suggest_float("servo_damping_scale", 0.2, 0.6)}
         cost, detail = evaluate(name, walk, options, commanded, sequences)
         trial.set_user_attr("detail", detail)
         return cost
@@ -84,7 +92,11 @@ def main(argv: list[str]) -> None:
     study = optuna.create_study(direction="minimize", sampler=optuna.samplers.TPESampler(seed=int(args.get("seed", 0)), multivariate=True),
                                 storage=storage, study_name=f"walk_{name}", load_if_exists=True)
     if len(study.trials) == 0:
-        study.enqueue_trial({k: base[k] for k in RANGES} | {"physics_dt": 0.005, "torsional_friction": 0.05, "servo_kp_scale": 1.0})
+        study.enqueue_trial(START)
+        if "enqueue" in args:  # a JSON file of parameters to try early (e.g. a previous study's best)
+            import json
+
+            study.enqueue_trial(json.loads(open(args["enqueue"]).read()), skip_if_exists=True)
     optuna.logging.set_verbosity(optuna.logging.WARNING)
 
     def report(study, trial):

@@ -48,7 +48,8 @@ class MujocoSim(PhysicsSim):
     """``PhysicsSim`` on the ``mujoco`` bindings (position actuators, implicitfast)."""
 
     def __init__(self, integrator: str = "implicitfast", max_render_size: int = 1024,
-                 torsional_friction: float | None = None, servo_kp_scale: float = 1.0):
+                 torsional_friction: float | None = None, servo_kp_scale: float = 1.0,
+                 servo_damping_scale: float = 1.0):
         if torsional_friction is not None and not (math.isfinite(torsional_friction) and torsional_friction >= 0):
             raise ValueError(f"backend.torsional_friction must be >= 0 (or null), got {torsional_friction!r}")
         if not (math.isfinite(servo_kp_scale) and servo_kp_scale > 0):
@@ -56,6 +57,9 @@ class MujocoSim(PhysicsSim):
         self.integrator = integrator
         self.torsional_friction = torsional_friction
         self.servo_kp_scale = float(servo_kp_scale)
+        if not (math.isfinite(servo_damping_scale) and servo_damping_scale >= 0):
+            raise ValueError(f"backend.servo_damping_scale must be >= 0, got {servo_damping_scale!r}")
+        self.servo_damping_scale = float(servo_damping_scale)
         self.max_render_size = int(max_render_size)
         self.model = self.data = None
         self._renderer = None
@@ -93,6 +97,9 @@ class MujocoSim(PhysicsSim):
         if self.servo_kp_scale != 1.0:  # position actuators: force = kp (ctrl - q)
             m.actuator_gainprm[:, 0] *= self.servo_kp_scale
             m.actuator_biasprm[:, 1] *= self.servo_kp_scale
+        if self.servo_damping_scale != 1.0:  # joint damping (the servos' back-EMF drag) of the robot joints
+            for name in robot.joint_names:
+                m.dof_damping[m.jnt_dofadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)]] *= self.servo_damping_scale
         self.data = d = mujoco.MjData(m)
 
         def jid(name):
@@ -122,6 +129,7 @@ class MujocoSim(PhysicsSim):
         self._obstacle_mask = np.zeros(m.ngeom, dtype=bool)
         self._obstacle_mask[self._obstacle_geoms] = True
         self.torso = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, robot.base_link)
+        self._sole_sites = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, n) for n in ("l_sole", "r_sole")]
         self._warning_ids = np.array([int(getattr(mujoco.mjtWarning, w)) for w in _FATAL_WARNINGS], dtype=np.intp)
         self._rot = np.zeros(9)
         self._step = mujoco.mj_step
@@ -172,7 +180,18 @@ class MujocoSim(PhysicsSim):
         for name, angle in joint_positions.items():
             d.qpos[self.joint_qpos[name]] = angle
             d.ctrl[self.actuator[name]] = angle
-        # Lower the robot so the lowest sole touches the floor.
+        # "Upright" means soles flat: the walk's standing pose pitches the trunk (trunk_pitch),
+        # so tilt the base by the inverse of the left sole's roll/pitch (yaw kept), then lower
+        # the robot so the lowest sole touches the floor.  Otherwise it starts on a heel or toe
+        # and is still rocking when the first step begins.
+        mujoco.mj_kinematics(m, d)
+        sole = self.data.site_xmat[self._sole_sites[0]].reshape(3, 3)
+        yaw = math.atan2(sole[1, 0], sole[0, 0])
+        level = np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0], [0.0, 0.0, 1.0]])
+        base_rot = level @ sole.T  # base (identity now) → rotation that makes the sole level
+        quat = np.zeros(4)
+        mujoco.mju_mat2Quat(quat, base_rot.ravel())
+        d.qpos[self._free_q + 3:self._free_q + 7] = quat
         mujoco.mj_kinematics(m, d)
         lowest = min(self._sole_height(s) for s in ("l_sole", "r_sole"))
         d.qpos[self._free_q + 2] -= lowest
@@ -288,9 +307,11 @@ class MujocoBackend(Physics3DBackend):
         integrator: str = "implicitfast",
         torsional_friction: float | None = None,
         servo_kp_scale: float = 1.0,
+        servo_damping_scale: float = 1.0,
     ):
         super().__init__(
-            robot, walk, MujocoSim(integrator=integrator, torsional_friction=torsional_friction, servo_kp_scale=servo_kp_scale), control_dt=control_dt, physics_dt=physics_dt,
+            robot, walk, MujocoSim(integrator=integrator, torsional_friction=torsional_friction, servo_kp_scale=servo_kp_scale,
+                      servo_damping_scale=servo_damping_scale), control_dt=control_dt, physics_dt=physics_dt,
             fall_threshold=fall_threshold, collision_ends_episode=collision_ends_episode,
             contact_check_every=contact_check_every, settle_time=settle_time, out_of_bounds=out_of_bounds,
             render_size=tuple(render_size),
