@@ -1,5 +1,8 @@
 """Evaluation on a fixed scene set: ``footsim-eval run=RUN_DIR [scenes=FILE] [backend=B] [noise=N]``.
 
+Baselines run the same way without a run: ``footsim-eval controller=velocity|footstep
+[backend=B] [task=T] [noise=N] [scenes=FILE]`` (``footsim.planners``).
+
 Writes ``summary.json``, ``episodes.csv`` and ``goals.png`` (thesis Fig. 6.3 style) into its own
 Hydra output directory and prints the thesis-style table.
 """
@@ -61,6 +64,8 @@ def run_episode(env, controller: Controller, scene: Scene, seed: int, record_fra
         "final_x": float(pose[0]), "final_y": float(pose[1]), "final_theta": float(pose[2]),
         "goal_x": scene.goal.x, "goal_y": scene.goal.y, "goal_theta": scene.goal.theta,
     }
+    if hasattr(controller, "episode_info"):  # e.g. a planner's failure reason and planning times
+        record.update(controller.episode_info())
     return record, frames
 
 
@@ -209,6 +214,51 @@ def evaluate_run(run_cfg, run_dir: Path, out_dir: Path, cfg_eval, label: str | N
     return summary
 
 
+def evaluate_baseline(cfg_eval, out_dir: Path, label: str | None = None) -> dict:
+    """Evaluate a baseline controller (``cfg_eval.controller``) on the eval scene set.
+
+    ``backend``/``task``/``noise`` are the eval config's groups (defaults pymunk, the scene
+    file's task or nav, none); the walk is the backend's preset, as in training.
+    """
+    from footsim import config as fconf
+    from footsim.env import FootstepEnv
+    from footsim.planners import make_controller
+
+    scenes = load_scenes(cfg_eval.scenes) if cfg_eval.get("scenes") else None
+    task = cfg_eval.get("task")
+    if task is None:
+        task = "nav_obstacles" if scenes is not None and any(s.all_obstacles for s in scenes) else "nav"
+    backend = cfg_eval.get("backend") or "pymunk"
+    noise = cfg_eval.get("noise") or "none"
+    video = bool(cfg_eval.get("video", False))
+    env = FootstepEnv(backend=fconf.to_plain(backend), task=fconf.to_plain(task), noise=fconf.to_plain(noise),
+                      render_mode="rgb_array" if video else None)
+    try:
+        if scenes is None:
+            scenes = eval_scenes(cfg_eval, env.sampler)
+        controller_cfg = fconf.to_plain(cfg_eval.controller)
+        controller = make_controller(env, controller_cfg)
+        records = evaluate(env, controller, scenes, seed=int(cfg_eval.get("seed", 0)),
+                           video_dir=out_dir / "videos" if video else None,
+                           video_episodes=int(cfg_eval.get("video_episodes", 3)))
+        cfg_used = {"controller": controller_cfg, **env.config}
+    finally:
+        env.close()
+    summary = summarize(records)
+    statuses = [r["planner_status"] for r in records if "planner_status" in r]
+    summary["planner_status"] = {k: statuses.count(k) for k in sorted(set(statuses))}
+    name = label or (f"{controller_cfg['name']} baseline ({env.config['backend']['name']}, {env.config['task']['name']}, "
+                     f"noise={env.config['noise'].get('name', '')})")
+    summary["label"] = name
+    write_results(out_dir, records, summary, scenes, plot=bool(cfg_eval.get("plot", True)), title=name)
+    from footsim.rl.common import write_json
+
+    write_json(out_dir / "config_used.json", cfg_used)
+    print(format_table({name: summary}))
+    print(f"results in {out_dir}")
+    return summary
+
+
 def _main(cfg) -> dict:
     from hydra.core.hydra_config import HydraConfig
     from omegaconf import OmegaConf
@@ -216,8 +266,11 @@ def _main(cfg) -> dict:
     from footsim import config as fconf
     from footsim.rl.common import load_run_config
 
+    controller = cfg.get("controller")
+    if controller is not None and controller.get("name", "policy") != "policy":
+        return evaluate_baseline(cfg, Path(HydraConfig.get().runtime.output_dir))
     if cfg.run is None:
-        raise SystemExit("footsim-eval: run=RUN_DIR is required")
+        raise SystemExit("footsim-eval: run=RUN_DIR is required (or controller=velocity|footstep for a baseline)")
     run_dir = Path(cfg.run).expanduser().resolve()
     run_cfg = load_run_config(run_dir)
     OmegaConf.set_struct(run_cfg, False)
