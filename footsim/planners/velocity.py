@@ -116,7 +116,8 @@ class VelocityController:
 
     It observes only ``info["pose_estimate"]`` (the believed pose), the scene's obstacles and goal.
     ``status`` names the last global plan's outcome (``ok``, ``ok_footprint_only``,
-    ``no_path``); with no path it walks straight at the target.
+    ``no_path``); with no path (goal unreachable or inside an obstacle) it steps in place until
+    the next replan, so a persistent failure ends the episode as a timeout.
     """
 
     kind = "velocity"
@@ -177,6 +178,9 @@ class VelocityController:
         if self.steps > 0 and self.steps % int(p.replan_period) == 0:
             self._replan(pose)
         self.steps += 1
+        if self.status == "no_path":  # navigation failed (as nav2 aborts the goal): step in place
+            self.command = (0.0, 0.0, 0.0)
+            return np.zeros(6)
         raw = carrot_command(pose, self._carrot(pose), self.targets[0], p)
         self.command = smooth(self.command, raw, p.smoothing)
         double_step = self.engine.footsteps_from_velocity(*self.command)
@@ -199,7 +203,7 @@ class VelocityController:
         self.plan_times.append(time.perf_counter() - start)
         if path is None:
             self.status = "no_path"
-            self.path = np.array([[pose.x, pose.y], [target.x, target.y]])
+            self.path = np.array([[pose.x, pose.y]])
         else:
             self.status = status
             self.path = densify(path.points, self.params.resolution)
