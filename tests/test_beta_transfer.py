@@ -91,7 +91,28 @@ def test_init_from_copies_weights_and_records_the_parent(tmp_path, agent):
 def test_init_from_with_mismatched_spaces_or_distribution_fails_clearly(tmp_path):
     parent, proc = _train(tmp_path, "parent")
     assert proc.returncode == 0, proc.stderr[-2000:]
-    _, proc = _train(tmp_path, "child", "task=nav_obstacles", f"init_from={parent}")
+    obstacle_parent, proc = _train(tmp_path, "parent_obst", "task=nav_obstacles")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    _, proc = _train(tmp_path, "child", "task=nav", f"init_from={obstacle_parent}")
     assert proc.returncode != 0 and "observation spaces differ" in proc.stderr
     _, proc = _train(tmp_path, "child2", "agent=ppo_beta", f"init_from={parent}")
     assert proc.returncode != 0 and "agent=ppo or agent=ppo_beta" in proc.stderr
+
+
+def test_obstacle_free_parent_seeds_an_obstacle_run_with_zero_ray_weights(tmp_path):
+    from footsim.rl.transfer import init_from_run
+
+    parent_env, child_env = FootstepEnv(), FootstepEnv(obstacles=True)
+    parent = PPO("MlpPolicy", parent_env, device="cpu", seed=0)
+    parent.save(tmp_path / "model.zip")
+    (tmp_path / "config.yaml").write_text("backend: {name: pymunk}\ntask: {name: nav}\n")
+    child = PPO("MlpPolicy", child_env, device="cpu", seed=1)
+    record = init_from_run(child, tmp_path)
+    assert record["observation_expanded"] == "17 -> 53"
+    # the child acts exactly like the parent whatever the rays say
+    obs, _ = child_env.reset(seed=0)
+    rays_changed = obs.copy()
+    rays_changed[17:] = 0.1
+    expected = parent.predict(obs[:17], deterministic=True)[0]
+    np.testing.assert_allclose(child.predict(obs, deterministic=True)[0], expected, atol=1e-6)
+    np.testing.assert_allclose(child.predict(rays_changed, deterministic=True)[0], expected, atol=1e-6)

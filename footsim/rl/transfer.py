@@ -2,8 +2,12 @@
 
 Policy and value weights (Gaussian or Beta) are copied, and the parent's observation
 normalization statistics when both runs normalize observations.  The backend may differ —
-that is the point (2D → 3D, MuJoCo → PyBullet) — but the observation and action spaces, the
-action distribution and the network shapes must match.
+that is the point (2D → 3D, MuJoCo → PyBullet) — but the action space, the action
+distribution and the network shapes must match.  One observation change is allowed: a run
+without obstacles (17-D) can seed a run with obstacles (53-D), whose observation starts with
+the same 17 values; the 36 ray inputs then start with zero weights, so the child begins as
+the parent's goal-reaching policy and learns to use the rays (a curriculum that avoids the
+"stand still, never collide" local optimum of the obstacle task).
 """
 
 from __future__ import annotations
@@ -24,20 +28,26 @@ def init_from_run(model, parent_dir: str | Path) -> dict:
     if not path.is_file():
         raise FileNotFoundError(f"init_from: no trained model at {path}")
     parent = PPO.load(path, device="cpu")
-    for what in ("observation_space", "action_space"):
-        ours, theirs = getattr(model, what), getattr(parent, what)
-        if ours.shape != theirs.shape:
-            raise ValueError(
-                f"init_from: the {what.replace('_', ' ')}s differ: parent {theirs.shape} vs this run {ours.shape} "
-                "(e.g. a task with obstacles has a 53-D observation, without 17-D)"
-            )
+    if model.action_space.shape != parent.action_space.shape:
+        raise ValueError(f"init_from: the action spaces differ: parent {parent.action_space.shape} "
+                         f"vs this run {model.action_space.shape}")
+    ours, theirs = model.observation_space.shape, parent.observation_space.shape
+    expand = ours != theirs
+    if expand and not (len(ours) == len(theirs) == 1 and theirs[0] == OBS_WITHOUT_RAYS and ours[0] > theirs[0]):
+        raise ValueError(
+            f"init_from: the observation spaces differ: parent {theirs} vs this run {ours} "
+            f"(only a {OBS_WITHOUT_RAYS}-D obstacle-free parent can seed a larger observation with rays)"
+        )
     if type(parent.policy) is not type(model.policy):
         raise ValueError(
             f"init_from: the parent's policy is {type(parent.policy).__name__}, this run's is "
             f"{type(model.policy).__name__}; choose the same agent distribution (agent=ppo or agent=ppo_beta)"
         )
+    state = parent.policy.state_dict()
+    if expand:
+        state = _widen_first_layers(state, model.policy.state_dict())
     try:
-        model.policy.load_state_dict(parent.policy.state_dict())
+        model.policy.load_state_dict(state)
     except RuntimeError as err:
         raise ValueError(f"init_from: the networks differ in shape (agent.net_arch must match the parent's): {err}") from None
 
@@ -57,4 +67,21 @@ def init_from_run(model, parent_dir: str | Path) -> dict:
         "parent_task": parent_cfg.task.name,
         "parent_num_timesteps": int(parent.num_timesteps),
         "copied_obs_normalization": copied_stats,
+        "observation_expanded": f"{theirs[0]} -> {ours[0]}" if expand else None,
     }
+
+
+OBS_WITHOUT_RAYS = 17
+
+
+def _widen_first_layers(parent_state: dict, child_state: dict) -> dict:
+    """Copy the parent's weights; input layers get zero columns for the extra observation values."""
+    out = {}
+    for key, value in parent_state.items():
+        target = child_state.get(key)
+        if target is not None and value.dim() == 2 and target.shape[0] == value.shape[0] and target.shape[1] > value.shape[1]:
+            widened = target.new_zeros(target.shape)
+            widened[:, : value.shape[1]] = value
+            value = widened
+        out[key] = value
+    return out
