@@ -102,6 +102,7 @@ class FootstepPlan:
     epsilon: float = math.nan  # ε of the search that found it
     expanded: int = 0
     time_s: float = 0.0
+    first_solution_s: float = math.nan  # time until the first complete plan (replayed or searched)
 
     @property
     def ok(self) -> bool:
@@ -286,6 +287,7 @@ class FootstepPlanner:
         if not math.isfinite(h0):
             return FootstepPlan("unreachable", time_s=time.perf_counter() - t0)
         best: FootstepPlan | None = self.replay(left, right, previous) if previous is not None else None
+        first_solution = time.perf_counter() - t0 if best is not None else math.nan
         best_partial = None
         expanded_total = 0
         exhausted = False
@@ -301,6 +303,8 @@ class FootstepPlanner:
                 if result["plan"] is not None:
                     best = result["plan"]
                     best.epsilon = eps
+                    if math.isnan(first_solution):
+                        first_solution = time.perf_counter() - t0
                 if result["timed_out"]:
                     break
                 if result["plan"] is None and best is None:
@@ -313,7 +317,7 @@ class FootstepPlanner:
         self._active_rects = self.rects
         elapsed = time.perf_counter() - t0
         if best is not None:
-            best.expanded, best.time_s = expanded_total, elapsed
+            best.expanded, best.time_s, best.first_solution_s = expanded_total, elapsed, first_solution
             return best
         if exhausted:
             return FootstepPlan("unreachable", expanded=expanded_total, time_s=elapsed)
