@@ -114,7 +114,8 @@ def test_joint_name_mapping(backend):
     assert np.argsort(reached).tolist() == np.argsort(targets).tolist()
 
 
-def test_blow_up_is_a_sim_error_with_finite_observation():
+def test_blow_up_is_a_sim_error_with_finite_observation(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # MuJoCo writes its warnings to MUJOCO_LOG.TXT in the cwd
     env = FootstepEnv(backend="mujoco")
     try:
         env.reset(seed=1)
