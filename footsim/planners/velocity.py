@@ -32,17 +32,17 @@ class VelocityParams:
     global_planner: str = "lazy_theta_star"  # lazy_theta_star | theta_star | astar
     resolution: float = 0.05  # costmap cell [m]; also the spacing of the path points
     footprint_radius: float = 0.15  # robot footprint as a circle [m]
-    inflation: float = 0.03  # extra clearance kept from obstacles [m]
+    inflation: float = 0.08  # extra clearance kept from obstacles [m]
     replan_period: int = 5  # double steps between global plans
-    carrot_distance: int = 10  # path points ahead of the closest one
-    max_vel_x: float = 0.3  # [m/s]
+    carrot_distance: int = 5  # path points ahead of the closest one
+    max_vel_x: float = 0.45  # [m/s]
     min_vel_x: float = -0.1  # [m/s]
-    max_vel_y: float = 0.1  # [m/s]
-    max_rotation_vel: float = 0.6  # [rad/s]
+    max_vel_y: float = 0.2  # [m/s]
+    max_rotation_vel: float = 1.0  # [rad/s]
     orient_to_goal_distance: float = 1.0  # [m] beyond: face the goal position; within: its heading
-    translation_slow_down_factor: float = 0.5  # walk_vel = min(distance · this, max_vel_x)
-    rotation_slow_down_factor: float = 0.3  # ω = clamp(this · heading error)
-    smoothing: float = 0.5  # exponential filter: cmd = smoothing · new + (1 - smoothing) · previous
+    translation_slow_down_factor: float = 1.0  # walk_vel = min(distance · this, max_vel_x)
+    rotation_slow_down_factor: float = 1.0  # ω = clamp(this · heading error)
+    smoothing: float = 1.0  # exponential filter: cmd = smoothing · new + (1 - smoothing) · previous
     heading_target: str = "goal"  # far from the goal, face the goal position (FACTS) or the carrot
     behind_ball: bool = False  # thesis 4.4: approach via a pose behind the goal
     behind_distance: float = 0.3  # [m] behind the goal pose
