@@ -116,7 +116,7 @@ class FootstepEnv(gym.Env):
         if self.scene is None:
             raise RuntimeError("step() called before reset()")
         double_step = DoubleStep.from_action(action, self.limits)  # validates: 6 finite values
-        action = np.clip(np.asarray(action, dtype=float).reshape(6), -1.0, 1.0)
+        action = np.asarray(action, dtype=float).reshape(6).clip(-1.0, 1.0)
         result = self.backend.execute(double_step)
         self._steps += 1
         self._time += result.duration_s
@@ -126,7 +126,8 @@ class FootstepEnv(gym.Env):
             self._pose = result.pose
         else:  # keep the last valid pose: the learner must never see NaN
             result.sim_error = result.sim_error or "non-finite pose"
-        terms = nav.reward_terms(self._pose, self.scene, action, self._prev_actions[0])
+        features = nav.goal_features(self._pose, self.scene.goal)
+        terms = nav.reward_terms(self._pose, self.scene, action, self._prev_actions[0], features)
         reward = nav.weighted_reward(terms, self.task.reward_weights)
 
         if result.sim_error is not None:
@@ -135,7 +136,7 @@ class FootstepEnv(gym.Env):
             self._outcome, terminated = "fall", True
         elif result.collided and self.backend.collision_ends_episode:
             self._outcome, terminated = "collision", True
-        elif nav.is_success(self._pose, self.scene.goal, self.task):
+        elif nav.is_success(self._pose, self.scene.goal, self.task, features):
             self._outcome, terminated = "success", True
             reward += float(self.task.max_steps - self._steps)  # the rest of the episode at max reward
         truncated = not terminated and self._steps >= self.task.max_steps
@@ -144,7 +145,8 @@ class FootstepEnv(gym.Env):
 
         self._prev_actions = (action, self._prev_actions[0])
         self._believed = self.noise.believe(self._pose, self._noise_rng)
-        obs = nav.observation(self._believed, self.scene, self._prev_actions, self.task)
+        obs = nav.observation(self._believed, self.scene, self._prev_actions, self.task,
+                              features if self._believed is self._pose else None)
         info = self._info(terms, result)
         return obs, float(reward), terminated, truncated, info
 

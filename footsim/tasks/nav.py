@@ -100,12 +100,14 @@ def nearest_obstacle_distance(pose: Pose2D, obstacles: tuple[Obstacle, ...]) -> 
     return best
 
 
-def reward_terms(pose: Pose2D, scene: Scene, action: np.ndarray, previous_action: np.ndarray) -> dict[str, float]:
+def reward_terms(pose: Pose2D, scene: Scene, action: np.ndarray, previous_action: np.ndarray,
+                 features: tuple[float, float, float] | None = None) -> dict[str, float]:
     """The five thesis 5.5 reward terms, each in [0, 1].
 
     The ball is excluded from the obstacle term (it would create a local minimum before the goal).
+    ``features`` may pass ``goal_features(pose, scene.goal)`` already computed by the caller.
     """
-    d, alpha, beta = goal_features(pose, scene.goal)
+    d, alpha, beta = features if features is not None else goal_features(pose, scene.goal)
     d_obs = nearest_obstacle_distance(pose, scene.obstacles)
     if math.isinf(d_obs):
         r_obs = 1.0
@@ -132,19 +134,21 @@ def weighted_reward(terms: dict[str, float], weights: dict[str, float]) -> float
     return float(sum(weights.get(k, 0.0) * v for k, v in terms.items()))
 
 
-def is_success(pose: Pose2D, goal: Pose2D, config: NavTaskConfig) -> bool:
-    d, alpha, _ = goal_features(pose, goal)
+def is_success(pose: Pose2D, goal: Pose2D, config: NavTaskConfig,
+               features: tuple[float, float, float] | None = None) -> bool:
+    d, alpha, _ = features if features is not None else goal_features(pose, goal)
     return d < config.success_distance and abs(alpha) < config.success_angle
 
 
 def observation(
-    believed: Pose2D, scene: Scene, previous_actions: tuple[np.ndarray, np.ndarray], config: NavTaskConfig
+    believed: Pose2D, scene: Scene, previous_actions: tuple[np.ndarray, np.ndarray], config: NavTaskConfig,
+    features: tuple[float, float, float] | None = None,
 ) -> np.ndarray:
     """17-D (or 53-D with rays) observation from the pose the robot *believes* it has.
 
     Layout: [tanh(d), sin α, cos α, sin β, cos β, a(t−1) (6), a(t−2) (6), tanh(rays) (36)].
     """
-    d, alpha, beta = goal_features(believed, scene.goal)
+    d, alpha, beta = features if features is not None else goal_features(believed, scene.goal)
     head = [math.tanh(d / config.distance_scale), math.sin(alpha), math.cos(alpha), math.sin(beta), math.cos(beta)]
     values = head + previous_actions[0].tolist() + previous_actions[1].tolist()
     if config.obstacles:

@@ -176,6 +176,10 @@ class FootstepGeometry:
         half = 0.5 * self.foot_distance
         return FeetState(pose.compose(Pose2D(0.0, half, 0.0)), pose.compose(Pose2D(0.0, -half, 0.0)))
 
+    @property
+    def _clear_distance(self) -> float:
+        return math.hypot(self.foot_length + self.min_foot_gap, self.foot_width + self.min_foot_gap)
+
     def _band(self, x: float, theta: float) -> tuple[float, float] | None:
         # Each plate grows by half the gap, so "overlap" means "closer than min_foot_gap".
         return _overlap_band_y(x, theta, 0.5 * (self.foot_length + self.min_foot_gap),
@@ -196,6 +200,8 @@ class FootstepGeometry:
         """
         x, y, theta = self.limits.clip(step.x, step.y, step.theta)
         rest_y = flying.sign * self.foot_distance
+        if abs(rest_y + y) >= self._clear_distance:  # farther apart than two circumradii: no overlap
+            return Pose2D(x, rest_y + y, theta), Footstep(x, y, theta), False
         band = self._band(x, theta)
         interfered = band is not None and band[0] < rest_y + y < band[1]
         if interfered:  # the resting side of the band is clear (checked at construction)
