@@ -42,6 +42,92 @@ _BALL_RGBA = [0.95, 0.95, 0.95, 1.0]
 #: after a bad qacc, so the counters are the only trace of a blow-up).
 _FATAL_WARNINGS = ("mjWARN_BADQACC", "mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADCTRL",
                    "mjWARN_CONTACTFULL", "mjWARN_CNSTRFULL", "mjWARN_INERTIA")
+#: The render camera: tracks the torso from this distance [m], elevation and azimuth [deg].
+CAMERA_DISTANCE, CAMERA_ELEVATION, CAMERA_AZIMUTH = 2.5, -30.0, -150.0
+
+
+# -- helpers shared with the dm-control backend (same engine, same model options) ----------
+def check_model_options(torsional_friction: float | None, servo_kp_scale: float,
+                        servo_damping_scale: float) -> tuple[float | None, float, float]:
+    """Validate the backend's model options; returns them as floats (torsional friction may be None)."""
+    if torsional_friction is not None and not (math.isfinite(torsional_friction) and torsional_friction >= 0):
+        raise ValueError(f"backend.torsional_friction must be >= 0 (or null), got {torsional_friction!r}")
+    if not (math.isfinite(servo_kp_scale) and servo_kp_scale > 0):
+        raise ValueError(f"backend.servo_kp_scale must be > 0, got {servo_kp_scale!r}")
+    if not (math.isfinite(servo_damping_scale) and servo_damping_scale >= 0):
+        raise ValueError(f"backend.servo_damping_scale must be >= 0, got {servo_damping_scale!r}")
+    return (None if torsional_friction is None else float(torsional_friction)), float(servo_kp_scale), float(servo_damping_scale)
+
+
+def obstacle_geometry(x: float, y: float, r: float, ball: bool):
+    """``(size, pos, rbound, aabb)`` of a pool geom placed as an obstacle cylinder or the ball."""
+    if ball:
+        return (r, 0.0, 0.0), (x, y, r), r, (0.0, 0.0, 0.0, r, r, r)
+    h = OBSTACLE_HEIGHT / 2
+    return (r, h, 0.0), (x, y, h), math.hypot(r, h), (0.0, 0.0, 0.0, r, r, h)
+
+
+def levelling_quat(sole_xmat: np.ndarray) -> np.ndarray:
+    """Base orientation (w, x, y, z) that makes a sole level, keeping its yaw.
+
+    ``sole_xmat`` is the sole's world rotation computed with the base at identity orientation.
+    """
+    sole = np.asarray(sole_xmat, dtype=float).reshape(3, 3)
+    yaw = math.atan2(sole[1, 0], sole[0, 0])
+    level = np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0], [0.0, 0.0, 1.0]])
+    base_rot = level @ sole.T  # base (identity now) → rotation that makes the sole level
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, base_rot.ravel())
+    return quat
+
+
+def fatal_warning_ids() -> np.ndarray:
+    """Indices into ``mjData.warning`` of :data:`_FATAL_WARNINGS`."""
+    return np.array([int(getattr(mujoco.mjtWarning, w)) for w in _FATAL_WARNINGS], dtype=np.intp)
+
+
+def fatal_warning_message(counts: np.ndarray) -> str | None:
+    """``counts``: warning counters at :func:`fatal_warning_ids`; a message if any is set."""
+    if counts.any():
+        return "MuJoCo warning: " + ", ".join(w for w, c in zip(_FATAL_WARNINGS, counts) if c)
+    return None
+
+
+def _add_scene_geom(scene, kind, size, pos, mat, rgba):
+    if scene.ngeom >= scene.maxgeom:
+        return None
+    # The whole buffer through the base class: dm_control's MjvScene subclass trims .geoms to ngeom.
+    geom = mujoco.MjvScene.geoms.__get__(scene)[scene.ngeom]
+    mujoco.mjv_initGeom(geom, kind, np.asarray(size, float), np.asarray(pos, float),
+                        np.asarray(mat, float).ravel(), np.asarray(rgba, np.float32))
+    scene.ngeom += 1
+    return geom
+
+
+def _scene_arrow(scene, xy, theta, length, width, rgba) -> None:
+    start = np.array([xy[0], xy[1], 0.03])
+    end = start + np.array([length * math.cos(theta), length * math.sin(theta), 0.0])
+    geom = _add_scene_geom(scene, mujoco.mjtGeom.mjGEOM_ARROW, [1, 1, 1], start, np.eye(3), rgba)
+    if geom is not None:
+        mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_ARROW, width, start, end)
+
+
+def draw_overlay(scene, overlay: RenderOverlay) -> None:
+    """Draw the task overlay into an ``mjvScene``: goal disc + heading arrow, believed pose, rays."""
+    goal = overlay.goal
+    colour = [0.1, 0.8, 0.1, 0.8] if overlay.reached else [0.9, 0.1, 0.1, 0.8]
+    eye = np.eye(3)
+    _add_scene_geom(scene, mujoco.mjtGeom.mjGEOM_CYLINDER, [0.12, 0.005, 0], [goal.x, goal.y, 0.005], eye, colour)
+    _scene_arrow(scene, (goal.x, goal.y), goal.theta, 0.35, 0.02, colour)
+    if overlay.believed is not None:
+        b = overlay.believed
+        _scene_arrow(scene, (b.x, b.y), b.theta, 0.25, 0.015, [0.2, 0.4, 1.0, 0.8])
+    if overlay.ray_endpoints is not None and overlay.believed is not None:
+        start = np.array([overlay.believed.x, overlay.believed.y, 0.02])
+        for end in np.asarray(overlay.ray_endpoints, float):
+            geom = _add_scene_geom(scene, mujoco.mjtGeom.mjGEOM_LINE, [1, 1, 1], start, eye, [1.0, 0.8, 0.0, 0.6])
+            if geom is not None:
+                mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_LINE, 2.0, start, np.array([end[0], end[1], 0.02]))
 
 
 class MujocoSim(PhysicsSim):
@@ -50,16 +136,9 @@ class MujocoSim(PhysicsSim):
     def __init__(self, integrator: str = "implicitfast", max_render_size: int = 1024,
                  torsional_friction: float | None = None, servo_kp_scale: float = 1.0,
                  servo_damping_scale: float = 1.0):
-        if torsional_friction is not None and not (math.isfinite(torsional_friction) and torsional_friction >= 0):
-            raise ValueError(f"backend.torsional_friction must be >= 0 (or null), got {torsional_friction!r}")
-        if not (math.isfinite(servo_kp_scale) and servo_kp_scale > 0):
-            raise ValueError(f"backend.servo_kp_scale must be > 0, got {servo_kp_scale!r}")
         self.integrator = integrator
-        self.torsional_friction = torsional_friction
-        self.servo_kp_scale = float(servo_kp_scale)
-        if not (math.isfinite(servo_damping_scale) and servo_damping_scale >= 0):
-            raise ValueError(f"backend.servo_damping_scale must be >= 0, got {servo_damping_scale!r}")
-        self.servo_damping_scale = float(servo_damping_scale)
+        self.torsional_friction, self.servo_kp_scale, self.servo_damping_scale = check_model_options(
+            torsional_friction, servo_kp_scale, servo_damping_scale)
         self.max_render_size = int(max_render_size)
         self.model = self.data = None
         self._renderer = None
@@ -130,7 +209,7 @@ class MujocoSim(PhysicsSim):
         self._obstacle_mask[self._obstacle_geoms] = True
         self.torso = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, robot.base_link)
         self._sole_sites = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, n) for n in ("l_sole", "r_sole")]
-        self._warning_ids = np.array([int(getattr(mujoco.mjtWarning, w)) for w in _FATAL_WARNINGS], dtype=np.intp)
+        self._warning_ids = fatal_warning_ids()
         self._rot = np.zeros(9)
         self._step = mujoco.mj_step
         self._park_all()
@@ -138,17 +217,7 @@ class MujocoSim(PhysicsSim):
 
     def _place(self, geom: int, x: float, y: float, r: float, ball: bool) -> None:
         m = self.model
-        if ball:
-            m.geom_size[geom] = (r, 0.0, 0.0)
-            m.geom_pos[geom] = (x, y, r)
-            m.geom_rbound[geom] = r
-            m.geom_aabb[geom] = (0.0, 0.0, 0.0, r, r, r)
-        else:
-            h = OBSTACLE_HEIGHT / 2
-            m.geom_size[geom] = (r, h, 0.0)
-            m.geom_pos[geom] = (x, y, h)
-            m.geom_rbound[geom] = math.hypot(r, h)
-            m.geom_aabb[geom] = (0.0, 0.0, 0.0, r, r, h)
+        m.geom_size[geom], m.geom_pos[geom], m.geom_rbound[geom], m.geom_aabb[geom] = obstacle_geometry(x, y, r, ball)
         m.geom_contype[geom] = m.geom_conaffinity[geom] = _OBSTACLE_BIT
         m.geom_rgba[geom, 3] = 1.0
 
@@ -185,13 +254,7 @@ class MujocoSim(PhysicsSim):
         # the robot so the lowest sole touches the floor.  Otherwise it starts on a heel or toe
         # and is still rocking when the first step begins.
         mujoco.mj_kinematics(m, d)
-        sole = self.data.site_xmat[self._sole_sites[0]].reshape(3, 3)
-        yaw = math.atan2(sole[1, 0], sole[0, 0])
-        level = np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0], [0.0, 0.0, 1.0]])
-        base_rot = level @ sole.T  # base (identity now) → rotation that makes the sole level
-        quat = np.zeros(4)
-        mujoco.mju_mat2Quat(quat, base_rot.ravel())
-        d.qpos[self._free_q + 3:self._free_q + 7] = quat
+        d.qpos[self._free_q + 3:self._free_q + 7] = levelling_quat(d.site_xmat[self._sole_sites[0]])
         mujoco.mj_kinematics(m, d)
         lowest = min(self._sole_height(s) for s in ("l_sole", "r_sole"))
         d.qpos[self._free_q + 2] -= lowest
@@ -220,10 +283,9 @@ class MujocoSim(PhysicsSim):
 
     def sim_error(self) -> str | None:
         d = self.data
-        counts = d.warning.number[self._warning_ids]
-        if counts.any():
-            names = [w for w, c in zip(_FATAL_WARNINGS, counts) if c]
-            return "MuJoCo warning: " + ", ".join(names)
+        message = fatal_warning_message(d.warning.number[self._warning_ids])
+        if message is not None:
+            return message
         if not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all()):
             return "non-finite MuJoCo state (qpos/qvel)"
         return None
@@ -238,47 +300,14 @@ class MujocoSim(PhysicsSim):
             self._camera = mujoco.MjvCamera()
             self._camera.type = mujoco.mjtCamera.mjCAMERA_TRACKING
             self._camera.trackbodyid = self.torso
-            self._camera.distance = 2.5
-            self._camera.elevation = -30.0
-            self._camera.azimuth = -150.0  # behind-left of a robot facing +x, looking forward
+            self._camera.distance = CAMERA_DISTANCE
+            self._camera.elevation = CAMERA_ELEVATION
+            self._camera.azimuth = CAMERA_AZIMUTH  # in front-left of a robot facing +x, looking back at it
         renderer = self._renderer
         renderer.update_scene(self.data, camera=self._camera)
         if overlay is not None:
-            self._draw_overlay(renderer.scene, overlay)
+            draw_overlay(renderer.scene, overlay)
         return renderer.render().copy()
-
-    @staticmethod
-    def _add_geom(scene, kind, size, pos, mat, rgba):
-        if scene.ngeom >= scene.maxgeom:
-            return None
-        geom = scene.geoms[scene.ngeom]
-        mujoco.mjv_initGeom(geom, kind, np.asarray(size, float), np.asarray(pos, float),
-                            np.asarray(mat, float).ravel(), np.asarray(rgba, np.float32))
-        scene.ngeom += 1
-        return geom
-
-    def _draw_overlay(self, scene, overlay: RenderOverlay) -> None:
-        goal = overlay.goal
-        colour = [0.1, 0.8, 0.1, 0.8] if overlay.reached else [0.9, 0.1, 0.1, 0.8]
-        eye = np.eye(3)
-        self._add_geom(scene, mujoco.mjtGeom.mjGEOM_CYLINDER, [0.12, 0.005, 0], [goal.x, goal.y, 0.005], eye, colour)
-        self._arrow(scene, (goal.x, goal.y), goal.theta, 0.35, 0.02, colour)
-        if overlay.believed is not None:
-            b = overlay.believed
-            self._arrow(scene, (b.x, b.y), b.theta, 0.25, 0.015, [0.2, 0.4, 1.0, 0.8])
-        if overlay.ray_endpoints is not None and overlay.believed is not None:
-            start = np.array([overlay.believed.x, overlay.believed.y, 0.02])
-            for end in np.asarray(overlay.ray_endpoints, float):
-                geom = self._add_geom(scene, mujoco.mjtGeom.mjGEOM_LINE, [1, 1, 1], start, eye, [1.0, 0.8, 0.0, 0.6])
-                if geom is not None:
-                    mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_LINE, 2.0, start, np.array([end[0], end[1], 0.02]))
-
-    def _arrow(self, scene, xy, theta, length, width, rgba) -> None:
-        start = np.array([xy[0], xy[1], 0.03])
-        end = start + np.array([length * math.cos(theta), length * math.sin(theta), 0.0])
-        geom = self._add_geom(scene, mujoco.mjtGeom.mjGEOM_ARROW, [1, 1, 1], start, np.eye(3), rgba)
-        if geom is not None:
-            mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_ARROW, width, start, end)
 
     def close(self) -> None:
         if self._renderer is not None:

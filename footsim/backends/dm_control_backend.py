@@ -1,0 +1,281 @@
+"""dm-control backend: the physics verbs of :class:`~footsim.backends.physics3d.PhysicsSim` in
+dm_control's own idiom, driven by the shared 3D driver.
+
+* **Model** — an ``mjcf`` object model: ``mjcf.from_xml_string`` of the robot spec's MJCF
+  (:func:`footsim.robots.mjcf.build_mjcf`, floor and light included).  The backend edits that
+  tree with the ``mjcf`` API before compiling: integrator and offscreen buffer size, the model
+  options it shares with the MuJoCo backend (torsional friction on the feet, servo kp and
+  damping scales — validated by the same helper), a tracking camera on the torso, and the
+  obstacle pool (:data:`~footsim.backends.mujoco_backend.N_CYLINDERS` cylinders and a sphere for
+  the ball, added to the world body).
+* **Physics** — ``mjcf.Physics.from_mjcf_model``.  Everything is addressed through
+  ``physics.bind(element)`` of the mjcf elements found by name (the bindings are made once at
+  :meth:`DmControlSim.build`); a new episode moves / resizes / parks the pool geoms through
+  their binding, without recompiling.  ``physics.step(n)`` advances.
+* **Faults** — dm_control raises ``PhysicsError`` when a step raises a MuJoCo warning
+  (bad qacc / qpos / qvel, …); the sim records it and reports it as ``sim_error``, as it does
+  for the MuJoCo backend's fatal warning counters and a non-finite state.
+* **Rendering** — ``physics.render(height, width, camera_id="track")`` (EGL headless) from a
+  camera that follows the torso with the MuJoCo backend's framing; the goal marker (disc and
+  heading arrow), believed pose and rays are drawn by a ``scene_callback`` with the MuJoCo
+  backend's overlay code.
+
+Physics is MuJoCo in both backends, so ``conf/walk/dm_control.yaml`` starts from the MuJoCo
+walk; the one difference in the model is the MJCF's float round trip through XML text.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+
+if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
+    os.environ["MUJOCO_GL"] = "egl"  # headless rendering; must be set before dm_control is imported
+
+from dm_control import mjcf  # a missing package: backend_class names the extra to install
+from dm_control.rl.control import PhysicsError
+
+from footsim.backends.base import RenderOverlay
+from footsim.backends.mujoco_backend import (
+    _BALL_RGBA,
+    _OBSTACLE_BIT,
+    _OBSTACLE_RGBA,
+    _PARK,
+    CAMERA_AZIMUTH,
+    CAMERA_DISTANCE,
+    CAMERA_ELEVATION,
+    N_CYLINDERS,
+    OBSTACLE_HEIGHT,
+    check_model_options,
+    draw_overlay,
+    fatal_warning_ids,
+    fatal_warning_message,
+    levelling_quat,
+    obstacle_geometry,
+)
+from footsim.backends.physics3d import DEFAULT_FALL_THRESHOLD, Physics3DBackend, PhysicsSim, quat_to_matrix
+from footsim.robots.mjcf import CONTACT_FRICTION, FREE_JOINT, build_mjcf, sole_site
+from footsim.robots.spec import RobotSpec
+from footsim.tasks.scenes import Scene
+from footsim.walk.ik import LEG_JOINT_NAMES
+from footsim.walk.params import WalkParams
+
+CAMERA = "track"  # name of the render camera (on the torso)
+_INTEGRATORS = ("euler", "implicit", "implicitfast", "rk4")
+
+
+def _camera_frame() -> tuple[np.ndarray, np.ndarray]:
+    """Offset from the torso [m] and ``xyaxes`` of a camera framed like the MuJoCo backend's
+    tracking camera (distance, elevation, azimuth about the torso)."""
+    az, el = math.radians(CAMERA_AZIMUTH), math.radians(CAMERA_ELEVATION)
+    forward = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+    right = np.cross(forward, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    return -CAMERA_DISTANCE * forward, np.concatenate([right, up])
+
+
+class DmControlSim(PhysicsSim):
+    """``PhysicsSim`` on dm_control: an ``mjcf`` model, ``mjcf.Physics``, bindings by name."""
+
+    def __init__(self, integrator: str = "implicitfast", max_render_size: int = 1024,
+                 torsional_friction: float | None = None, servo_kp_scale: float = 1.0,
+                 servo_damping_scale: float = 1.0):
+        if integrator not in _INTEGRATORS:
+            raise ValueError(f"backend.integrator must be one of {', '.join(_INTEGRATORS)}; got {integrator!r}")
+        self.integrator = integrator
+        self.torsional_friction, self.servo_kp_scale, self.servo_damping_scale = check_model_options(
+            torsional_friction, servo_kp_scale, servo_damping_scale)
+        self.max_render_size = int(max_render_size)
+        self.mjcf_model = self.physics = None
+        self._error: str | None = None
+
+    # -- world ------------------------------------------------------------------------------
+    def build(self, robot: RobotSpec, physics_dt: float) -> None:
+        self.robot = robot
+        model = mjcf.from_xml_string(build_mjcf(robot, floor=True, timestep=physics_dt).xml)
+        model.option.integrator = self.integrator
+        offscreen = model.visual.get_children("global")
+        offscreen.offwidth = offscreen.offheight = self.max_render_size
+        self._apply_model_options(model, robot)
+
+        torso = model.find("body", robot.base_link)
+        offset, xyaxes = _camera_frame()
+        com = np.asarray(robot.link(robot.base_link).inertial.com, dtype=float)
+        torso.add("camera", name=CAMERA, mode="track", pos=com + offset, xyaxes=xyaxes)
+
+        self._pool = [
+            model.worldbody.add(
+                "geom", name=name, type="sphere" if name == "ball" else "cylinder",
+                size=[0.1] if name == "ball" else [0.1, OBSTACLE_HEIGHT / 2], pos=_PARK,
+                rgba=_BALL_RGBA if name == "ball" else _OBSTACLE_RGBA,
+                contype=_OBSTACLE_BIT, conaffinity=_OBSTACLE_BIT,
+            )
+            for name in [f"obstacle{i}" for i in range(N_CYLINDERS)] + ["ball"]
+        ]
+        self.mjcf_model = model
+        self.physics = physics = mjcf.Physics.from_mjcf_model(model)
+
+        # Name mapping, once: mjcf elements by name → bindings into the compiled model / data.
+        def find(kind, name):
+            element = model.find(kind, name)
+            if element is None:
+                raise ValueError(f"dm_control model has no {kind} {name!r}")
+            return element
+
+        self.joints = {n: find("joint", n) for n in robot.joint_names}
+        self.actuators = {n: find("actuator", n) for n in robot.joint_names}
+        for n, actuator in self.actuators.items():  # each actuator drives the joint of its name
+            if actuator.joint is not self.joints[n]:
+                raise ValueError(f"actuator {n!r} does not drive joint {n!r}")
+        self._root = physics.bind(find("joint", FREE_JOINT))
+        self._legs = physics.bind([self.actuators[n] for n in LEG_JOINT_NAMES])
+        self._soles = physics.bind([find("site", sole_site(s)) for s in ("left", "right")])
+        self._pool_bound = physics.bind(self._pool)
+        self._pool_ids = np.asarray(self._pool_bound.element_id, dtype=np.intp)
+        self._obstacle_mask = np.zeros(physics.model.ngeom, dtype=bool)
+        self._obstacle_mask[self._pool_ids] = True
+        self._warning_ids = fatal_warning_ids()
+        self._park_all()
+        physics.forward()
+
+    def _apply_model_options(self, model, robot: RobotSpec) -> None:
+        """The MuJoCo backend's model options, as edits of the mjcf tree (see conf/backend/dm_control.yaml)."""
+        if self.torsional_friction is not None:  # feet: torsional friction (condim 4) against spinning
+            for side in ("left", "right"):
+                for geom in model.find("body", robot.foot_link(side)).get_children("geom"):
+                    friction = list(geom.friction) if geom.friction is not None else list(CONTACT_FRICTION)
+                    friction += list(CONTACT_FRICTION[len(friction):])  # MJCF may omit trailing values
+                    friction[1] = self.torsional_friction
+                    geom.condim, geom.friction = 4, friction
+        if self.servo_kp_scale != 1.0:  # position actuators (general, affine bias): force = kp (ctrl - q)
+            for name in robot.joint_names:
+                actuator = model.find("actuator", name)
+                gain, bias = np.array(actuator.gainprm, dtype=float), np.array(actuator.biasprm, dtype=float)
+                gain[0] *= self.servo_kp_scale
+                bias[1] *= self.servo_kp_scale
+                actuator.gainprm, actuator.biasprm = gain, bias
+        if self.servo_damping_scale != 1.0:  # joint damping (the servos' back-EMF drag) of the robot joints
+            for name in robot.joint_names:
+                joint = model.find("joint", name)
+                joint.damping = (joint.damping or 0.0) * self.servo_damping_scale
+
+    def _park_all(self) -> None:
+        pool = self._pool_bound
+        pool.pos = np.tile(_PARK, (len(self._pool), 1))
+        pool.contype = pool.conaffinity = 0
+        pool.rgba[:, 3] = 0.0  # invisible
+
+    def set_obstacles(self, scene: Scene) -> None:
+        if len(scene.obstacles) > N_CYLINDERS:
+            raise ValueError(f"the dm_control backend holds at most {N_CYLINDERS} obstacles, scene has {len(scene.obstacles)}")
+        self._park_all()
+        placed = [(geom, o, False) for geom, o in zip(self._pool[:-1], scene.obstacles)]
+        if scene.ball is not None:
+            placed.append((self._pool[-1], scene.ball, True))
+        for geom, obstacle, ball in placed:
+            bound = self.physics.bind(geom)
+            bound.size, bound.pos, bound.rbound, bound.aabb = obstacle_geometry(obstacle.x, obstacle.y, obstacle.r, ball)
+            bound.contype = bound.conaffinity = _OBSTACLE_BIT
+            bound.rgba[3] = 1.0
+
+    # -- robot ------------------------------------------------------------------------------
+    def reset_robot(self, base_position: np.ndarray, joint_positions: dict[str, float]) -> None:
+        physics = self.physics
+        self._error = None
+        names = list(joint_positions)
+        angles = np.array([joint_positions[n] for n in names], dtype=float)
+        root = np.concatenate([np.asarray(base_position, dtype=float), [1.0, 0.0, 0.0, 0.0]])
+        with physics.reset_context():  # mj_resetData: zero velocities, warnings, time, contacts
+            physics.bind([self.joints[n] for n in names]).qpos = angles
+            physics.bind([self.actuators[n] for n in names]).ctrl = angles
+            self._root.qpos = root
+        # "Upright" means soles flat: the standing pose pitches the trunk, so tilt the base to
+        # level the left sole (yaw kept), then lower it until the lowest sole touches the floor
+        # (the MuJoCo backend's levelling, shared helper).
+        root[3:] = levelling_quat(self._soles.xmat[0])
+        self._root.qpos = root
+        physics.forward()
+        root[2] -= float(self._soles.xpos[:, 2].min())  # sole sites are on the bottom faces
+        self._root.qpos = root
+        physics.forward()
+
+    def set_leg_targets(self, targets: np.ndarray) -> None:
+        self._legs.ctrl = targets
+
+    def advance(self, n_steps: int) -> None:
+        if self._error is not None:
+            return  # the state is no longer valid; the driver ends the episode at its next check
+        try:
+            self.physics.step(n_steps)
+        except PhysicsError as err:
+            self._error = f"dm_control PhysicsError: {err}"
+
+    def base_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        q = np.array(self._root.qpos, dtype=float)  # free joint: position, unit quaternion (w, x, y, z)
+        return q[:3], quat_to_matrix(q[3:7])
+
+    def obstacle_contact(self) -> bool:
+        data = self.physics.data
+        if data.ncon == 0:
+            return False
+        return bool(self._obstacle_mask[data.contact.geom].any())
+
+    def sim_error(self) -> str | None:
+        if self._error is not None:
+            return self._error
+        data = self.physics.data
+        message = fatal_warning_message(data.warning.number[self._warning_ids])
+        if message is not None:
+            return message
+        if not (np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all()):
+            return "non-finite dm_control state (qpos/qvel)"
+        return None
+
+    # -- rendering --------------------------------------------------------------------------
+    def render(self, overlay: RenderOverlay | None, width: int, height: int) -> np.ndarray | None:
+        width, height = min(int(width), self.max_render_size), min(int(height), self.max_render_size)
+        callback = None if overlay is None else (lambda physics, scene: draw_overlay(scene, overlay))
+        return np.array(self.physics.render(height=height, width=width, camera_id=CAMERA, scene_callback=callback))
+
+    def close(self) -> None:
+        if self.physics is not None:
+            self.physics.free()  # rendering contexts and the native model / data
+        self.physics = self.mjcf_model = None
+        self._root = self._legs = self._soles = self._pool_bound = None
+        self._pool, self.joints, self.actuators = [], {}, {}
+
+
+class DmControlBackend(Physics3DBackend):
+    """The dm-control backend (``backend=dm_control``; options in ``conf/backend/dm_control.yaml``)."""
+
+    name = "dm_control"
+
+    def __init__(
+        self,
+        robot: RobotSpec,
+        walk: WalkParams,
+        control_dt: float = 0.01,
+        physics_dt: float = 0.005,
+        fall_threshold: float = DEFAULT_FALL_THRESHOLD,
+        collision_ends_episode: bool = False,
+        contact_check_every: int = 5,
+        settle_time: float = 0.1,
+        out_of_bounds: float = 50.0,
+        render_size=(480, 480),
+        integrator: str = "implicitfast",
+        torsional_friction: float | None = None,
+        servo_kp_scale: float = 1.0,
+        servo_damping_scale: float = 1.0,
+        max_render_size: int = 1024,
+    ):
+        super().__init__(
+            robot, walk,
+            DmControlSim(integrator=integrator, max_render_size=max_render_size, torsional_friction=torsional_friction,
+                         servo_kp_scale=servo_kp_scale, servo_damping_scale=servo_damping_scale),
+            control_dt=control_dt, physics_dt=physics_dt, fall_threshold=fall_threshold,
+            collision_ends_episode=collision_ends_episode, contact_check_every=contact_check_every,
+            settle_time=settle_time, out_of_bounds=out_of_bounds, render_size=tuple(render_size),
+        )
