@@ -1,7 +1,8 @@
-"""``footsim-bench [what=env2d,walk] [repeats=5] [steps=20000]``: speed benchmarks.
+"""``footsim-bench [what=env2d,walk,...] [repeats=5] [steps=20000]``: speed benchmarks.
 
 Prints markdown tables (medians over ``repeats``) for ``docs/BENCHMARKS.md``.  Each
-benchmark runs in this process on one core; nothing here belongs in a unit test.
+benchmark runs in this process on one core.  Rates are given per CPU second of this process
+(robust on a busy machine) and per wall second.  Nothing here belongs in a unit test.
 """
 
 from __future__ import annotations
@@ -32,14 +33,15 @@ def bench_env2d(steps: int = 20000, repeats: int = 5) -> list[dict]:
             rng = np.random.default_rng(r)
             actions = rng.uniform(-1, 1, size=(steps, 6))
             env.reset(seed=r)
-            start = time.perf_counter()
+            start, start_cpu = time.perf_counter(), time.process_time()
             for a in actions:
                 _, _, terminated, truncated, _ = env.step(a)
                 if terminated or truncated:
                     env.reset()
-            rates.append(steps / (time.perf_counter() - start))
-        rows.append({"benchmark": label, "median env steps/s": statistics.median(rates),
-                     "min": min(rates), "max": max(rates)})
+            rates.append((steps / (time.process_time() - start_cpu), steps / (time.perf_counter() - start)))
+        cpu = [r[0] for r in rates]
+        rows.append({"benchmark": label, "median env steps/s (CPU time)": statistics.median(cpu),
+                     "min": min(cpu), "max": max(cpu), "median env steps/s (wall)": statistics.median(r[1] for r in rates)})
     return rows
 
 
@@ -50,7 +52,29 @@ def bench_walk(repeats: int = 5) -> list[dict]:
     return [{"benchmark": "quintic walk + leg IK, one double step at 500 Hz", **result}]
 
 
-BENCHMARKS = {"env2d": bench_env2d, "walk": bench_walk}
+def _bench_3d(name: str):
+    def run(repeats: int = 5) -> list[dict]:
+        """Env double steps/s vs raw physics for the same ticks, their ratio, RSS (median of runs)."""
+        from footsim.backends.bench3d import bench_backend
+
+        runs = [bench_backend(name, repeats=20, seed=r) for r in range(repeats)]
+        keys = [k for k, v in runs[0].items() if isinstance(v, (int, float)) and not isinstance(v, bool)]
+        row = {"backend": name}
+        row.update({k: statistics.median(r[k] for r in runs) for k in keys if k != "repeats"})
+        row["fell"] = any(r.get("fell") for r in runs)
+        return [row]
+
+    return run
+
+
+def bench_planners(repeats: int = 5) -> list[dict]:
+    from footsim.planners.bench import bench_planners as planners
+
+    return planners()
+
+
+BENCHMARKS = {"env2d": bench_env2d, "walk": bench_walk, "mujoco": _bench_3d("mujoco"),
+              "dm_control": _bench_3d("dm_control"), "pybullet": _bench_3d("pybullet"), "planners": bench_planners}
 
 
 def _table(rows: list[dict]) -> str:
