@@ -16,7 +16,8 @@ from omegaconf import DictConfig, OmegaConf
 _PACKAGE_DIR = Path(__file__).resolve().parent
 
 #: Preset used for each group when nothing is given (dict overrides merge on top of it).
-GROUP_DEFAULTS = {"backend": "pymunk", "task": "nav", "noise": "none", "robot": "wolfgang", "walk": "default"}
+GROUP_DEFAULTS = {"backend": "pymunk", "task": "nav", "noise": "none", "robot": "wolfgang", "walk": "default",
+                  "randomization": "none"}
 
 
 def conf_dir() -> Path:
@@ -139,6 +140,14 @@ def build_backend(backend_cfg: Mapping, robot, walk):
     if name is None:
         raise ValueError("backend: config has no 'name'")
     return backend_class(name)(robot=robot, walk=walk, **cfg)
+
+
+def build_randomizer(randomization_cfg: Mapping | None, backend):
+    """A ``Randomizer`` for the backend's section of the preset; unsupported terms fail here."""
+    from footsim.randomization import Randomizer, parse_terms
+
+    section = "terms_2d" if backend.kind == "2d" else "terms_3d"
+    return Randomizer(parse_terms(randomization_cfg, section), backend.name, backend.capabilities)
 
 
 def to_plain(cfg: Any) -> Any:

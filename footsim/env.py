@@ -30,7 +30,9 @@ class FootstepEnv(gym.Env):
             mapping with ``name`` and options.
         task: task preset (``nav``, ``nav_obstacles``) or a mapping merged over ``nav``.
         obstacles: shortcut — ``True`` selects ``nav_obstacles`` when ``task`` is not given.
-        noise: noise preset (``none``, ``localization``) or mapping (``sigma_x`` …).
+        noise: noise preset (``none``, ``localization``, …) or mapping (``sigma_x`` …).
+        randomization: domain-randomization preset (``none``, ``default``, ``strong``) or a
+            mapping with ``terms_2d`` / ``terms_3d`` (see ``footsim.randomization``).
         robot, walk: presets or mappings of the ``robot`` and ``walk`` groups.
         scenes: optional list of ``Scene`` to cycle through instead of sampling (evaluation);
             a scene can also be passed per episode as ``reset(options={"scene": scene})``.
@@ -48,6 +50,7 @@ class FootstepEnv(gym.Env):
         noise: str | Mapping = "none",
         robot: str | Mapping = "wolfgang",
         walk: str | Mapping | None = None,
+        randomization: str | Mapping = "none",
         scenes: list[Scene] | None = None,
         render_mode: str | None = None,
     ):
@@ -64,6 +67,7 @@ class FootstepEnv(gym.Env):
             "noise": fconf.load_preset("noise", noise),
             "robot": fconf.load_preset("robot", robot),
             "walk": fconf.load_preset("walk", walk),
+            "randomization": fconf.load_preset("randomization", randomization),
         }
         if obstacles is not None and bool(obstacles) != bool(self.config["task"].get("obstacles")):
             raise ValueError(f"obstacles={obstacles} contradicts task {self.config['task'].get('name')!r}")
@@ -72,6 +76,11 @@ class FootstepEnv(gym.Env):
         self.robot = fconf.build_robot(self.config["robot"])
         self.walk = fconf.build_walk(self.config["walk"])
         self.backend = fconf.build_backend(self.config["backend"], self.robot, self.walk)
+        try:
+            self.randomizer = fconf.build_randomizer(self.config["randomization"], self.backend)
+        except Exception:
+            self.backend.close()
+            raise
         self.limits = self.robot.step_limits
         self.render_mode = render_mode
         self.fixed_scenes = list(scenes) if scenes is not None else None
@@ -102,6 +111,11 @@ class FootstepEnv(gym.Env):
         # Independent streams so that e.g. switching noise off leaves scene sampling unchanged.
         self._noise_rng = np.random.default_rng(int(self.np_random.integers(2**63)))
         backend_rng = np.random.default_rng(int(self.np_random.integers(2**63)))
+        self._random_rng = np.random.default_rng(int(self.np_random.integers(2**63)))
+        self._randomization = {}
+        if self.randomizer.active:
+            self._randomization = self.randomizer.episode(self._random_rng)
+            self.backend.apply_randomization(self._randomization)
         self._pose = self.backend.reset(self.scene, backend_rng)
         self._prev_actions = (np.zeros(6), np.zeros(6))
         self._steps = 0
@@ -117,6 +131,11 @@ class FootstepEnv(gym.Env):
             raise RuntimeError("step() called before reset()")
         double_step = DoubleStep.from_action(action, self.limits)  # validates: 6 finite values
         action = np.asarray(action, dtype=float).reshape(6).clip(-1.0, 1.0)
+        if self.randomizer.active:
+            changed = self.randomizer.step(self._random_rng)
+            if changed:
+                self._randomization.update(changed)
+                self.backend.apply_randomization(changed)
         result = self.backend.execute(double_step)
         self._steps += 1
         self._time += result.duration_s
@@ -177,6 +196,8 @@ class FootstepEnv(gym.Env):
             "steps": self._steps,
             "reward_terms": dict(terms),
         }
+        if self.randomizer.active:
+            info["randomization"] = dict(self._randomization)
         if result is not None:
             info["collided"] = bool(result.collided)
             info["executed_action"] = None if result.executed is None else result.executed.as_array()
@@ -191,5 +212,5 @@ def make_env(cfg, scenes: list[Scene] | None = None, render_mode: str | None = N
     plain = fconf.to_plain(cfg)
     return FootstepEnv(
         backend=plain["backend"], task=plain["task"], noise=plain["noise"], robot=plain["robot"],
-        walk=plain["walk"], scenes=scenes, render_mode=render_mode,
+        walk=plain["walk"], randomization=plain.get("randomization", "none"), scenes=scenes, render_mode=render_mode,
     )

@@ -42,8 +42,10 @@ class RenderOverlay:
 
 class Backend(ABC):
     name: str = "base"
-    #: Names of randomization terms / sensors this backend supports.  Asking for anything else
-    #: is an error (never a silent no-op).
+    #: "2d" or "3d": which section of a randomization preset applies (terms_2d / terms_3d).
+    kind: str = "3d"
+    #: Names of randomization terms this backend supports (see ``footsim.randomization.TERMS``).
+    #: Asking for anything else is an error (never a silent no-op).
     capabilities: frozenset[str] = frozenset()
     #: Whether touching an obstacle ends the episode (2D: yes, per the thesis; 3D: configurable).
     collision_ends_episode: bool = True
@@ -55,6 +57,12 @@ class Backend(ABC):
     @abstractmethod
     def execute(self, double_step: DoubleStep) -> StepResult:
         """Execute one double step."""
+
+    def apply_randomization(self, values: dict[str, float]) -> None:
+        """Apply drawn randomization values (called before ``reset`` and, for per-step terms,
+        before ``execute``).  Only terms in ``capabilities`` are ever passed."""
+        if values:
+            raise ValueError(f"backend {self.name!r} cannot apply randomization terms {sorted(values)}")
 
     def render(self, overlay: RenderOverlay | None = None) -> np.ndarray | None:
         return None

@@ -94,6 +94,7 @@ class PhysicsSim(ABC):
 class Physics3DBackend(Backend):
     """A ``Backend`` that walks the robot with the quintic engine on a ``PhysicsSim``."""
 
+    kind = "3d"
     collision_ends_episode = False  # thesis: 3D contacts destabilise the robot, they do not end the episode
 
     def __init__(

@@ -28,7 +28,8 @@ def _box(body: pymunk.Body, length: float, width: float) -> pymunk.Poly:
 
 class Pymunk2DBackend(Backend):
     name = "pymunk"
-    capabilities = frozenset()
+    kind = "2d"
+    capabilities = frozenset({"footstep_noise_x", "footstep_noise_y", "footstep_noise_theta", "walk_freq_scale"})
     collision_ends_episode = True
 
     def __init__(self, robot: RobotSpec, walk: WalkParams, collision_ends_episode: bool = True, **unused):
@@ -48,10 +49,31 @@ class Pymunk2DBackend(Backend):
         self.history: list[tuple[Side, Pose2D]] = []
         self.nav_history: list[Pose2D] = []
         self.scene: Scene | None = None
+        self._noise_sigma = (0.0, 0.0, 0.0)
+        self._duration = walk.double_step_duration
+        self._rng = np.random.default_rng(0)
+
+    def apply_randomization(self, values: dict[str, float]) -> None:
+        sx, sy, st = self._noise_sigma
+        sx = abs(values.get("footstep_noise_x", sx))
+        sy = abs(values.get("footstep_noise_y", sy))
+        st = abs(values.get("footstep_noise_theta", st))
+        self._noise_sigma = (sx, sy, st)
+        if "walk_freq_scale" in values:
+            scale = values["walk_freq_scale"]
+            if scale <= 0:
+                raise ValueError(f"walk_freq_scale must be > 0, got {scale}")
+            self._duration = self.walk.double_step_duration / scale
+
+    def _perturb(self, pose: Pose2D) -> Pose2D:
+        """A landed foot displaced by execution noise, in its own frame."""
+        ex, ey, et = self._rng.normal(0.0, 1.0, 3) * self._noise_sigma
+        return pose.compose(Pose2D(float(ex), float(ey), float(et)))
 
     # -- episode --------------------------------------------------------------------------
     def reset(self, scene: Scene, rng: np.random.Generator) -> Pose2D:
         self.scene = scene
+        self._rng = rng
         self.space = pymunk.Space()
         for obstacle in scene.all_obstacles:
             self.space.add(pymunk.Circle(self.space.static_body, obstacle.r, (obstacle.x, obstacle.y)))
@@ -73,7 +95,9 @@ class Pymunk2DBackend(Backend):
         if self.feet is None:
             raise RuntimeError("backend pymunk: execute() before reset()")
         before = self.feet
-        after_first, after_second, executed, n_interfered = self.geometry.execute(before, double_step)
+        noisy = any(self._noise_sigma)
+        after_first, after_second, executed, n_interfered = self.geometry.execute(
+            before, double_step, self._perturb if noisy else None)
         collided = False
         if self.scene.all_obstacles:
             collided = (
@@ -85,7 +109,7 @@ class Pymunk2DBackend(Backend):
         self.nav_history.append(after_second.nav_pose)
         return StepResult(
             pose=after_second.nav_pose,
-            duration_s=self.walk.double_step_duration,
+            duration_s=self._duration,
             feet=after_second,
             executed=executed,
             collided=collided,

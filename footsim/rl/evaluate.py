@@ -274,7 +274,7 @@ def _main(cfg) -> dict:
     run_dir = Path(cfg.run).expanduser().resolve()
     run_cfg = load_run_config(run_dir)
     OmegaConf.set_struct(run_cfg, False)
-    for group in ("backend", "noise"):  # groups selected on the command line replace the run's
+    for group in ("backend", "noise", "randomization"):  # groups chosen on the command line replace the run's
         if cfg.get(group) is not None:
             run_cfg[group] = fconf.load_preset(group, cfg[group])
     if cfg.get("backend") is not None:  # a policy moved to another backend walks with that backend's gait

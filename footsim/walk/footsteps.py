@@ -208,11 +208,12 @@ class FootstepGeometry:
             y = (band[1] if flying is Side.LEFT else band[0]) - rest_y
         return Pose2D(x, rest_y + y, theta), Footstep(x, y, theta), interfered
 
-    def execute(self, feet: FeetState, double_step: DoubleStep):
+    def execute(self, feet: FeetState, double_step: DoubleStep, perturb=None):
         """Place both footsteps of a double step.
 
-        Returns ``(feet after the first half step, feet after the second, executed DoubleStep,
-        number of interfering steps)``.
+        ``perturb(pose) -> pose``, if given, moves each landed foot (execution noise); the next
+        step then starts from where the foot really is.  Returns ``(feet after the first half
+        step, feet after the second, executed DoubleStep, number of interfering steps)``.
         """
         executed = []
         halves = []
@@ -220,7 +221,8 @@ class FootstepGeometry:
         for flying, step in double_step.steps():
             support = feet.foot(flying.other)
             rel, done, interfered = self.landing(flying, step)
-            feet = feet.with_foot(flying, support.compose(rel))
+            landed = support.compose(rel)
+            feet = feet.with_foot(flying, perturb(landed) if perturb is not None else landed)
             executed.append(done)
             halves.append(feet)
             n_interfered += int(interfered)
