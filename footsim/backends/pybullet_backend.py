@@ -29,9 +29,11 @@ Contacts.  Lateral / spinning / rolling friction of the floor and the feet as th
 PyBullet setup (FACTS: 1.0 / 0.1 / 0.1).  Obstacles are static cylinders, the ball a static
 sphere, both rebuilt per episode.
 
-Determinism.  Every episode starts from ``resetSimulation`` and a fresh load of the same URDF
-file (a few ms), so an episode's trajectory depends only on the scene and the actions, not on
-contact caches left by earlier episodes.
+Determinism and memory.  The world is built once.  Each episode resets the robot's base and
+joint states and re-adds its links to the broadphase, which drops their contact manifolds, so
+no warm-start impulses carry over from an earlier episode.  (``resetSimulation`` + ``loadURDF``
+per episode would be simpler but Bullet leaks ~46 kB per load; obstacle bodies are pooled for
+the same reason.)
 """
 
 from __future__ import annotations
@@ -112,10 +114,23 @@ def _axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
     return np.eye(3) + math.sin(angle) * k + (1 - math.cos(angle)) * (k @ k)
 
 
-def _cleanup(client: int, path: str | None) -> None:
+#: Idle built worlds (a DIRECT client with floor and robot loaded), keyed by the model.  Bullet
+#: keeps ~50-70 kB per ``loadURDF`` even after ``resetSimulation`` or ``disconnect``, so 1000
+#: create/close cycles would grow the process by ~70 MB; ``close`` parks its world here instead
+#: and the next backend of the same model reuses it, so memory is bounded by the number of
+#: backends open at once.  Beyond ``_MAX_IDLE`` idle worlds, ``close`` disconnects.
+_IDLE_WORLDS: dict[tuple, list[dict]] = {}
+_MAX_IDLE = 4
+
+
+def _release(client: int, path: str | None, key: tuple | None, world: dict | None) -> None:
     try:
         if p.isConnected(client):
-            p.disconnect(client)
+            idle = _IDLE_WORLDS.setdefault(key, []) if key is not None and world is not None else None
+            if idle is not None and sum(map(len, _IDLE_WORLDS.values())) < _MAX_IDLE:
+                idle.append(world)
+            else:
+                p.disconnect(client)
     except Exception:  # pragma: no cover - interpreter shutdown
         pass
     if path:
@@ -173,33 +188,39 @@ class PybulletSim(PhysicsSim):
     # -- world ----------------------------------------------------------------------------
     def build(self, robot: RobotSpec, physics_dt: float) -> None:
         self.spec, self.physics_dt = robot, float(physics_dt)
-        self.client = p.connect(p.DIRECT)
-        if self.client < 0:  # pragma: no cover
-            raise RuntimeError("pybullet: could not connect a DIRECT client")
-        fd, self._urdf_path = tempfile.mkstemp(prefix=f"footsim_{robot.name}_", suffix=".urdf")
-        with os.fdopen(fd, "w") as f:
-            f.write(model_urdf(robot, self.rigid_upper_body))
-        self._finalizer = weakref.finalize(self, _cleanup, self.client, self._urdf_path)
+        text = model_urdf(robot, self.rigid_upper_body)
+        self._key = (text, self.self_collision)
         # Motor gains per joint (see the module docstring for the mapping).
         self._gain = {j.name: min(1.0, self.position_gain_scale * j.servo.kp * self.physics_dt / max(j.servo.damping, 1e-6))
                       for j in robot.joints}
         self._self_collide = {link.name: any(s.self_collision for s in link.shapes) for link in robot.links}
-        self._build_world()
+        fd, self._urdf_path = tempfile.mkstemp(prefix=f"footsim_{robot.name}_", suffix=".urdf")
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+        idle = _IDLE_WORLDS.get(self._key)
+        world = None
+        while idle and world is None:
+            candidate = idle.pop()
+            world = candidate if p.isConnected(candidate["client"]) else None
+        if world is not None:  # reuse a parked world of the same model
+            self.__dict__.update(world)
+        else:
+            self.client = p.connect(p.DIRECT)
+            if self.client < 0:  # pragma: no cover
+                raise RuntimeError("pybullet: could not connect a DIRECT client")
+        self._finalizer = weakref.finalize(self, _release, self.client, self._urdf_path, None, None)
+        if world is None:
+            self._build_world()
+        self._configure()
 
     def _build_world(self) -> None:
         """(Re)create floor and robot in an empty world; joint indices are mapped by name."""
         c = self.client
         p.resetSimulation(physicsClientId=c)
-        p.setGravity(0, 0, -9.81, physicsClientId=c)
-        p.setPhysicsEngineParameter(fixedTimeStep=self.physics_dt, numSolverIterations=self.solver_iterations,
-                                    numSubSteps=0, deterministicOverlappingPairs=1, physicsClientId=c)
         floor_shape = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=c)
         floor_visual = p.createVisualShape(p.GEOM_BOX, halfExtents=[25, 25, 0.001], visualFramePosition=[0, 0, -0.001],
                                            rgbaColor=[0.35, 0.55, 0.35, 1], physicsClientId=c)
         self.floor_id = p.createMultiBody(0, floor_shape, floor_visual, physicsClientId=c)
-        p.changeDynamics(self.floor_id, -1, lateralFriction=self.lateral_friction,
-                         spinningFriction=self.spinning_friction, rollingFriction=self.rolling_friction,
-                         physicsClientId=c)
         p.setCollisionFilterGroupMask(self.floor_id, -1, _STATIC, _ROBOT, physicsClientId=c)
         flags = (p.URDF_USE_INERTIA_FROM_FILE | p.URDF_USE_SELF_COLLISION
                  | p.URDF_USE_SELF_COLLISION_EXCLUDE_PARENT | p.URDF_MERGE_FIXED_LINKS)
@@ -207,6 +228,7 @@ class PybulletSim(PhysicsSim):
             self.robot_id = p.loadURDF(self._urdf_path, [0, 0, 1], flags=flags, physicsClientId=c)
         self.joint_index: dict[str, int] = {}
         self.link_index: dict[str, int] = {self.spec.base_link: -1}
+        self._filters: list[tuple[int, int, int]] = []
         for i in range(p.getNumJoints(self.robot_id, physicsClientId=c)):
             info = p.getJointInfo(self.robot_id, i, physicsClientId=c)
             self.link_index[info[12].decode()] = i
@@ -224,48 +246,154 @@ class PybulletSim(PhysicsSim):
                 group |= _LEFT_LEG if left else _RIGHT_LEG
                 mask |= _RIGHT_LEG if left else _LEFT_LEG
             p.setCollisionFilterGroupMask(self.robot_id, link, group, mask, physicsClientId=c)
+            self._filters.append((link, group, mask))
         # No explicit joint damping: Bullet applies it as an explicit torque, which diverges on the
         # light foot links at 1/240 s (D·dt/I ≫ 2); the servo's damping is in the motor mapping.
         for index in self.joint_index.values():
             p.changeDynamics(self.robot_id, index, jointDamping=0.0, physicsClientId=c)
-        for foot in ("l_foot", "r_foot"):
-            if foot in self.link_index:
-                p.changeDynamics(self.robot_id, self.link_index[foot], lateralFriction=self.lateral_friction,
-                                 physicsClientId=c)
         # Base pose: Bullet reports the base's inertial frame; keep the link-frame offset.
         dyn = p.getDynamicsInfo(self.robot_id, -1, physicsClientId=c)
         self._com_pos = np.array(dyn[3])
         self._com_orn = tuple(dyn[4])
         self._com_rot = np.array(p.getMatrixFromQuaternion(self._com_orn)).reshape(3, 3)
+        self.obstacle_ids: list[int] = []
+        self._goal_marker = -1
+        self._scene: Scene | None = None
+
+    # -- world ----------------------------------------------------------------------------
+    def build(self, robot: RobotSpec, physics_dt: float) -> None:
+        self.spec, self.physics_dt = robot, float(physics_dt)
+        text = model_urdf(robot, self.rigid_upper_body)
+        self._key = (text, self.self_collision)
+        # Motor gains per joint (see the module docstring for the mapping).
+        self._gain = {j.name: min(1.0, self.position_gain_scale * j.servo.kp * self.physics_dt / max(j.servo.damping, 1e-6))
+                      for j in robot.joints}
+        self._self_collide = {link.name: any(s.self_collision for s in link.shapes) for link in robot.links}
+        fd, self._urdf_path = tempfile.mkstemp(prefix=f"footsim_{robot.name}_", suffix=".urdf")
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+        idle = _IDLE_WORLDS.get(self._key)
+        world = None
+        while idle and world is None:
+            candidate = idle.pop()
+            world = candidate if p.isConnected(candidate["client"]) else None
+        if world is not None:  # reuse a parked world of the same model
+            self.__dict__.update(world)
+        else:
+            self.client = p.connect(p.DIRECT)
+            if self.client < 0:  # pragma: no cover
+                raise RuntimeError("pybullet: could not connect a DIRECT client")
+        self._finalizer = weakref.finalize(self, _release, self.client, self._urdf_path, None, None)
+        if world is None:
+            self._build_world()
+        self._configure()
+
+    def _build_world(self) -> None:
+        """(Re)create floor and robot in an empty world; joint indices are mapped by name."""
+        c = self.client
+        p.resetSimulation(physicsClientId=c)
+        floor_shape = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=c)
+        floor_visual = p.createVisualShape(p.GEOM_BOX, halfExtents=[25, 25, 0.001], visualFramePosition=[0, 0, -0.001],
+                                           rgbaColor=[0.35, 0.55, 0.35, 1], physicsClientId=c)
+        self.floor_id = p.createMultiBody(0, floor_shape, floor_visual, physicsClientId=c)
+        p.setCollisionFilterGroupMask(self.floor_id, -1, _STATIC, _ROBOT, physicsClientId=c)
+        flags = (p.URDF_USE_INERTIA_FROM_FILE | p.URDF_USE_SELF_COLLISION
+                 | p.URDF_USE_SELF_COLLISION_EXCLUDE_PARENT | p.URDF_MERGE_FIXED_LINKS)
+        with _quiet():
+            self.robot_id = p.loadURDF(self._urdf_path, [0, 0, 1], flags=flags, physicsClientId=c)
+        self.joint_index: dict[str, int] = {}
+        self.link_index: dict[str, int] = {self.spec.base_link: -1}
+        self._filters: list[tuple[int, int, int]] = []
+        for i in range(p.getNumJoints(self.robot_id, physicsClientId=c)):
+            info = p.getJointInfo(self.robot_id, i, physicsClientId=c)
+            self.link_index[info[12].decode()] = i
+            if info[2] == p.JOINT_REVOLUTE:
+                self.joint_index[info[1].decode()] = i
+        self.joint_names = [n for n in self.spec.joint_names if n in LEG_JOINT_NAMES or not self.rigid_upper_body]
+        missing = sorted(set(self.joint_names) - set(self.joint_index))
+        if missing:
+            raise RuntimeError(f"pybullet: the loaded URDF lacks joints {missing}")
+        # Self-collision only between the legs' self-colliding links (as in the MJCF model).
+        for name, link in self.link_index.items():
+            group, mask = _ROBOT, _STATIC
+            if self.self_collision and self._self_collide.get(name):
+                left = name.startswith("l_")
+                group |= _LEFT_LEG if left else _RIGHT_LEG
+                mask |= _RIGHT_LEG if left else _LEFT_LEG
+            p.setCollisionFilterGroupMask(self.robot_id, link, group, mask, physicsClientId=c)
+            self._filters.append((link, group, mask))
+        # No explicit joint damping: Bullet applies it as an explicit torque, which diverges on the
+        # light foot links at 1/240 s (D·dt/I ≫ 2); the servo's damping is in the motor mapping.
+        for index in self.joint_index.values():
+            p.changeDynamics(self.robot_id, index, jointDamping=0.0, physicsClientId=c)
+        # Base pose: Bullet reports the base's inertial frame; keep the link-frame offset.
+        dyn = p.getDynamicsInfo(self.robot_id, -1, physicsClientId=c)
+        self._com_pos = np.array(dyn[3])
+        self._com_orn = tuple(dyn[4])
+        self._com_rot = np.array(p.getMatrixFromQuaternion(self._com_orn)).reshape(3, 3)
+        self.obstacle_ids: list[int] = []
+        self._free: dict[tuple[str, float], list[int]] = {}
+        self._pool_key: dict[int, tuple[str, float]] = {}
+        self._goal_marker = -1
+
+    def _configure(self) -> None:
+        """Settings of this backend's config on a (new or reused) world."""
+        c = self.client
+        p.setGravity(0, 0, -9.81, physicsClientId=c)
+        p.setPhysicsEngineParameter(fixedTimeStep=self.physics_dt, numSolverIterations=self.solver_iterations,
+                                    numSubSteps=0, deterministicOverlappingPairs=1, physicsClientId=c)
+        p.changeDynamics(self.floor_id, -1, lateralFriction=self.lateral_friction,
+                         spinningFriction=self.spinning_friction, rollingFriction=self.rolling_friction,
+                         physicsClientId=c)
+        for foot in ("l_foot", "r_foot"):
+            if foot in self.link_index:
+                p.changeDynamics(self.robot_id, self.link_index[foot], lateralFriction=self.lateral_friction,
+                                 physicsClientId=c)
         # Motor arrays, in a fixed order: legs (LEG_JOINT_NAMES), then the rest.
         self.leg_indices = [self.joint_index[n] for n in LEG_JOINT_NAMES]
         self.leg_forces = [self.spec.joint(n).effort for n in LEG_JOINT_NAMES]
         self.leg_gains = [self._gain[n] for n in LEG_JOINT_NAMES]
         self.leg_vgains = [self.velocity_gain] * len(LEG_JOINT_NAMES)
         self.other_names = [n for n in self.joint_names if n not in LEG_JOINT_NAMES]
-        self.obstacle_ids = []
-        self._goal_marker = -1
 
     def set_obstacles(self, scene: Scene) -> None:
+        """Place the scene's cylinders and ball from a pool of static bodies (no create/remove per
+        episode: Bullet leaks a few kB per created body).  Bodies are pooled per radius (to the
+        0.1 mm); unused ones are parked far below the floor with collisions off."""
         self._scene = scene
-        self._build_world()  # fresh world per episode: determinism (see module docstring)
         c = self.client
-        for obstacle, is_ball in [(o, False) for o in scene.obstacles] + (
-                [(scene.ball, True)] if scene.ball is not None else []):
-            if is_ball:
-                shape = p.createCollisionShape(p.GEOM_SPHERE, radius=obstacle.r, physicsClientId=c)
-                visual = p.createVisualShape(p.GEOM_SPHERE, radius=obstacle.r, rgbaColor=[1, 1, 1, 1],
-                                             physicsClientId=c)
-                z = obstacle.r
-            else:
-                shape = p.createCollisionShape(p.GEOM_CYLINDER, radius=obstacle.r, height=self.obstacle_height,
-                                               physicsClientId=c)
-                visual = p.createVisualShape(p.GEOM_CYLINDER, radius=obstacle.r, length=self.obstacle_height,
-                                             rgbaColor=[0.8, 0.25, 0.2, 1], physicsClientId=c)
-                z = self.obstacle_height / 2
-            body = p.createMultiBody(0, shape, visual, [obstacle.x, obstacle.y, z], physicsClientId=c)
+        if not self._healthy():  # after a blow-up, start from a freshly built world
+            self._build_world()
+            self._configure()
+        for body in self.obstacle_ids:  # park last episode's bodies
+            p.resetBasePositionAndOrientation(body, [0.0, 0.0, -100.0], [0, 0, 0, 1], physicsClientId=c)
+            p.setCollisionFilterGroupMask(body, -1, 0, 0, physicsClientId=c)
+            self._free[self._pool_key[body]].append(body)
+        self.obstacle_ids = []
+        items = [(o, False) for o in scene.obstacles] + ([(scene.ball, True)] if scene.ball is not None else [])
+        for obstacle, is_ball in items:
+            key = ("ball" if is_ball else "cylinder", round(float(obstacle.r), 4))
+            free = self._free.setdefault(key, [])
+            body = free.pop() if free else self._new_obstacle(key)
+            z = obstacle.r if is_ball else self.obstacle_height / 2
+            p.resetBasePositionAndOrientation(body, [obstacle.x, obstacle.y, z], [0, 0, 0, 1], physicsClientId=c)
             p.setCollisionFilterGroupMask(body, -1, _STATIC, _ROBOT, physicsClientId=c)
             self.obstacle_ids.append(body)
+
+    def _new_obstacle(self, key: tuple[str, float]) -> int:
+        c = self.client
+        kind, radius = key
+        if kind == "ball":
+            shape = p.createCollisionShape(p.GEOM_SPHERE, radius=radius, physicsClientId=c)
+            visual = p.createVisualShape(p.GEOM_SPHERE, radius=radius, rgbaColor=[1, 1, 1, 1], physicsClientId=c)
+        else:
+            shape = p.createCollisionShape(p.GEOM_CYLINDER, radius=radius, height=self.obstacle_height,
+                                           physicsClientId=c)
+            visual = p.createVisualShape(p.GEOM_CYLINDER, radius=radius, length=self.obstacle_height,
+                                         rgbaColor=[0.8, 0.25, 0.2, 1], physicsClientId=c)
+        body = p.createMultiBody(0, shape, visual, [0.0, 0.0, -100.0], physicsClientId=c)
+        self._pool_key[body] = key
+        return body
 
     # -- robot ----------------------------------------------------------------------------
     def reset_robot(self, base_position: np.ndarray, joint_positions: dict[str, float]) -> None:
@@ -273,6 +401,10 @@ class PybulletSim(PhysicsSim):
         com = np.asarray(base_position, dtype=float) + self._com_pos  # upright: link frame = world axes
         p.resetBasePositionAndOrientation(body, com.tolist(), self._com_orn, physicsClientId=c)
         p.resetBaseVelocity(body, [0, 0, 0], [0, 0, 0], physicsClientId=c)
+        # Re-adding the links to the broadphase drops their contact manifolds, so no warm-start
+        # impulses from the previous episode leak into this one (determinism).
+        for link, group, mask in self._filters:
+            p.setCollisionFilterGroupMask(body, link, group, mask, physicsClientId=c)
         for name in self.joint_names:
             p.resetJointState(body, self.joint_index[name], float(joint_positions.get(name, 0.0)), 0.0,
                               physicsClientId=c)
@@ -321,6 +453,13 @@ class PybulletSim(PhysicsSim):
             return "exploding base velocity"
         return None
 
+    def _healthy(self) -> bool:
+        """No sim error and the base within 50 m of the origin (else the world is rebuilt)."""
+        if self.sim_error() is not None:
+            return False
+        pos, _ = p.getBasePositionAndOrientation(self.robot_id, physicsClientId=self.client)
+        return max(abs(v) for v in pos) < 50.0
+
     # -- rendering ------------------------------------------------------------------------
     def render(self, overlay: RenderOverlay | None, width: int, height: int) -> np.ndarray | None:
         c = self.client
@@ -351,9 +490,25 @@ class PybulletSim(PhysicsSim):
                                             flags=p.ER_NO_SEGMENTATION_MASK, physicsClientId=c)
         return np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[:, :, :3].copy()
 
+    _WORLD_ATTRS = ("client", "floor_id", "robot_id", "joint_index", "link_index", "joint_names", "_filters",
+                    "_com_pos", "_com_orn", "_com_rot", "obstacle_ids", "_free", "_pool_key", "_goal_marker",
+                    "_goal_arrow")
+
     def close(self) -> None:
-        if self._finalizer is not None:
-            self._finalizer()  # disconnect and remove the URDF file (idempotent)
+        """Park the world for reuse (see ``_IDLE_WORLDS``) or disconnect; remove the URDF file."""
+        if self._finalizer is None or not self._finalizer.alive:
+            return
+        self._finalizer.detach()
+        world = None
+        try:
+            # A world that blew up is not reused (NaN may linger in Bullet's caches).
+            if self.robot_id >= 0 and p.isConnected(self.client) and self._healthy():
+                if self._scene is not None:
+                    self.set_obstacles(type(self._scene)(goal=self._scene.goal))  # park the obstacles
+                world = {k: getattr(self, k) for k in self._WORLD_ATTRS if hasattr(self, k)}
+        except Exception:  # pragma: no cover - a broken world is not reused
+            world = None
+        _release(self.client, self._urdf_path, self._key if world is not None else None, world)
         self.client = -1
 
 

@@ -1,0 +1,231 @@
+"""PyBullet backend: env checkers, walking, determinism, name mapping, faults, contacts, memory."""
+
+import os
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+pybullet = pytest.importorskip("pybullet")
+
+from gymnasium.utils.env_checker import check_env as gym_check_env  # noqa: E402
+from stable_baselines3.common.env_checker import check_env as sb3_check_env  # noqa: E402
+
+import footsim  # noqa: E402,F401  (registers the env)
+from footsim.backends.pybullet_backend import PybulletBackend, model_urdf  # noqa: E402
+from footsim.env import FootstepEnv  # noqa: E402
+from footsim.geometry import Pose2D  # noqa: E402
+from footsim.tasks.scenes import Obstacle, Scene  # noqa: E402
+from footsim.walk.footsteps import DoubleStep  # noqa: E402
+from footsim.walk.ik import LEG_JOINT_NAMES  # noqa: E402
+from footsim.walkcheck import make_backend  # noqa: E402
+
+EMPTY = Scene(goal=Pose2D(100.0, 0.0, 0.0))
+FORWARD = np.array([0.5, 0.0, 0.0, 0.5, 0.0, 0.0])
+
+
+@pytest.fixture(scope="module")
+def backend():
+    b = make_backend("pybullet")
+    yield b
+    b.close()
+
+
+def test_env_checkers_pass():
+    env = gym.make("footsim/FootstepNav-v0", backend="pybullet", obstacles=True)
+    try:
+        gym_check_env(env.unwrapped, skip_render_check=True)
+    finally:
+        env.close()
+    env = FootstepEnv(backend="pybullet")
+    try:
+        sb3_check_env(env)
+    finally:
+        env.close()
+
+
+def test_render_rgb_frame():
+    env = FootstepEnv(backend={"name": "pybullet", "render_size": [160, 120]}, obstacles=True,
+                      render_mode="rgb_array")
+    try:
+        env.reset(seed=3)
+        frame = env.render()
+    finally:
+        env.close()
+    assert frame.shape == (120, 160, 3) and frame.dtype == np.uint8
+    assert frame.std() > 5.0  # not blank
+    assert len(np.unique(frame.reshape(-1, 3), axis=0)) > 50
+
+
+def test_short_walk_moves_forward_without_falling(backend):
+    start = backend.reset(EMPTY, np.random.default_rng(0))
+    for _ in range(5):
+        result = backend.execute(DoubleStep.from_action(FORWARD, backend.robot.step_limits))
+        assert not result.fell and result.sim_error is None
+    assert result.pose.x - start.x > 0.3  # 5 double steps of ~0.16 m commanded (first one shorter)
+    assert abs(result.pose.y - start.y) < 0.25
+
+
+def _trajectory(seed, warmup_seed=None):
+    env = FootstepEnv(backend="pybullet", obstacles=True)
+    try:
+        if warmup_seed is not None:  # an earlier, different episode must leave no trace
+            env.reset(seed=warmup_seed)
+            for _ in range(3):
+                env.step(np.random.default_rng(warmup_seed).uniform(-1, 1, 6))
+        env.reset(seed=seed)
+        rng = np.random.default_rng(seed)
+        rows = []
+        for _ in range(4):
+            obs, r, term, trunc, info = env.step(rng.uniform(-0.5, 0.5, 6))
+            rows.append(np.concatenate([info["pose"], obs]))
+        return np.array(rows)
+    finally:
+        env.close()
+
+
+def test_same_seed_identical_trajectory():
+    a, b = _trajectory(7), _trajectory(7)
+    np.testing.assert_array_equal(a, b)  # bit-identical poses and observations
+    np.testing.assert_array_equal(a, _trajectory(7, warmup_seed=3))
+
+
+def test_joint_name_mapping(backend):
+    sim, c = backend.sim, backend.sim.client
+    assert set(LEG_JOINT_NAMES) <= set(sim.joint_index)
+    for name, index in sim.joint_index.items():
+        info = pybullet.getJointInfo(sim.robot_id, index, physicsClientId=c)
+        assert info[1].decode() == name
+        assert info[12].decode() == backend.robot.joint(name).child
+        assert (info[8], info[9]) == pytest.approx(backend.robot.joint(name).range)
+    assert sim.leg_indices == [sim.joint_index[n] for n in LEG_JOINT_NAMES]
+    # targets reach the right joints: a distinct target per leg joint, robot held in the air
+    backend.reset(EMPTY, np.random.default_rng(0))
+    targets = backend.engine.standing_joint_targets() + np.linspace(-0.06, 0.06, 12)
+    pybullet.setGravity(0, 0, 0, physicsClientId=c)
+    pos, orn = pybullet.getBasePositionAndOrientation(sim.robot_id, physicsClientId=c)
+    pybullet.resetBasePositionAndOrientation(sim.robot_id, [pos[0], pos[1], pos[2] + 0.3], orn, physicsClientId=c)
+    try:
+        sim.set_leg_targets(targets)
+        sim.advance(300)
+        reached = np.array([sim.joint_positions()[n] for n in LEG_JOINT_NAMES])
+    finally:
+        pybullet.setGravity(0, 0, -9.81, physicsClientId=c)
+    np.testing.assert_allclose(reached, targets, atol=0.02)
+    assert np.argsort(reached).tolist() == np.argsort(targets).tolist()
+
+
+def test_full_model_maps_every_spec_joint(backend):
+    full = PybulletBackend(backend.robot, backend.walk, rigid_upper_body=False)
+    try:
+        assert set(full.sim.joint_index) == set(backend.robot.joint_names)
+        full.reset(EMPTY, np.random.default_rng(0))
+        q = full.sim.joint_positions()
+        for name, angle in backend.robot.walk_ready.items():
+            if name not in LEG_JOINT_NAMES:
+                assert q[name] == pytest.approx(angle, abs=0.05), name
+    finally:
+        full.close()
+    assert 'type="fixed"' in model_urdf(backend.robot, True)
+
+
+def test_blow_up_is_a_sim_error_with_finite_observation():
+    env = FootstepEnv(backend="pybullet")
+    try:
+        env.reset(seed=1)
+        sim = env.unwrapped.backend.sim
+        pybullet.resetBaseVelocity(sim.robot_id, [float("nan")] * 3, [0, 0, 0], physicsClientId=sim.client)
+        obs, reward, term, trunc, info = env.step(FORWARD)
+        assert term and info["outcome"] == "sim_error" and "sim_error" in info
+        assert np.all(np.isfinite(obs)) and np.isfinite(reward)
+        for kick in ([0.0, 0.0, 200.0], [0.0, 0.0, 0.0]):  # exploding velocity; far out of bounds
+            env.reset(seed=2)  # the env recovers on reset
+            sim = env.unwrapped.backend.sim
+            if kick[2]:
+                for _ in range(10):  # a persistent blow-up, not a single kick Bullet absorbs
+                    pybullet.resetBaseVelocity(sim.robot_id, kick, [0, 0, 0], physicsClientId=sim.client)
+                    sim.advance(1)
+            else:
+                pybullet.resetBasePositionAndOrientation(sim.robot_id, [0, 0, 1e4], [0, 0, 0, 1],
+                                                         physicsClientId=sim.client)
+            assert sim.sim_error() is not None or env.unwrapped.backend._sim_error() is not None
+            obs, reward, term, trunc, info = env.step(FORWARD)
+            assert term and info["outcome"] == "sim_error", info["outcome"]
+            assert np.all(np.isfinite(obs))
+    finally:
+        env.close()
+
+
+def test_obstacle_contact_is_reported_and_does_not_end_the_episode():
+    scene = Scene(goal=Pose2D(2.0, 0.0, 0.0), obstacles=(Obstacle(0.3, 0.0, 0.15),))
+    env = FootstepEnv(backend="pybullet", obstacles=True)
+    try:
+        env.reset(seed=0, options={"scene": scene})
+        collided = False
+        for _ in range(6):
+            obs, r, term, trunc, info = env.step(FORWARD)
+            collided = collided or info["collided"]
+            if collided or term:
+                break
+        assert collided
+        assert info["outcome"] != "collision"  # 3D: reported, not terminal (collision_ends_episode false)
+    finally:
+        env.close()
+
+
+def test_obstacles_and_ball_are_placed(backend):
+    sim, c = backend.sim, backend.sim.client
+    scene = Scene(goal=Pose2D(3.0, 0.0, 0.0), obstacles=(Obstacle(1.0, 0.5, 0.2), Obstacle(2.0, -0.5, 0.3)),
+                  ball=Obstacle(1.5, 0.0, 0.075))
+    backend.reset(scene, np.random.default_rng(0))
+    assert len(sim.obstacle_ids) == 3
+    pos = [pybullet.getBasePositionAndOrientation(b, physicsClientId=c)[0] for b in sim.obstacle_ids]
+    np.testing.assert_allclose(pos[0][:2], (1.0, 0.5))
+    np.testing.assert_allclose(pos[2], (1.5, 0.0, 0.075))
+    assert pybullet.getCollisionShapeData(sim.obstacle_ids[1], -1, physicsClientId=c)[0][2] == pybullet.GEOM_CYLINDER
+    assert pybullet.getCollisionShapeData(sim.obstacle_ids[2], -1, physicsClientId=c)[0][2] == pybullet.GEOM_SPHERE
+    assert not sim.obstacle_contact()
+    pools = sum(len(v) for v in sim._free.values())
+    backend.reset(EMPTY, np.random.default_rng(0))
+    assert sim.obstacle_ids == [] and sum(len(v) for v in sim._free.values()) == pools + 3
+    assert pybullet.getBasePositionAndOrientation(sim._free[("ball", 0.075)][0], physicsClientId=c)[0][2] < -50
+
+
+def test_several_backends_coexist(backend):
+    other = make_backend("pybullet")
+    try:
+        assert other.sim.client != backend.sim.client
+        a = backend.reset(EMPTY, np.random.default_rng(0))
+        b = other.reset(EMPTY, np.random.default_rng(0))
+        assert a == b
+    finally:
+        other.close()
+    assert backend.sim.base_pose()[0][2] > 0.3  # still usable after the other one closed
+
+
+def _rss_mb():
+    psutil = pytest.importorskip("psutil")
+    return psutil.Process(os.getpid()).memory_info().rss / 2**20
+
+
+def test_create_reset_close_cycles_do_not_leak(backend):
+    for _ in range(20):  # warm up allocators
+        PybulletBackend(backend.robot, backend.walk).close()
+        backend.reset(EMPTY, np.random.default_rng(0))
+    before = _rss_mb()
+    rng = np.random.default_rng(0)
+    for i in range(300):
+        scene = Scene(goal=Pose2D(1.0, 0.0, 0.0), obstacles=(Obstacle(2.0, float(rng.uniform(-1, 1)), 0.2),),
+                      ball=Obstacle(1.2, 0.0, 0.075) if i % 2 else None)
+        backend.reset(scene, rng)
+    after_resets = _rss_mb()
+    paths = []
+    for _ in range(300):
+        b = PybulletBackend(backend.robot, backend.walk)
+        b.reset(EMPTY, rng)
+        paths.append(b.sim._urdf_path)
+        b.close()
+    end = _rss_mb()
+    assert after_resets - before < 10.0, f"RSS grew {after_resets - before:.1f} MB over 300 resets"
+    assert end - after_resets < 10.0, f"RSS grew {end - after_resets:.1f} MB over 300 create/reset/close cycles"
+    assert not any(os.path.exists(p) for p in paths)  # temp URDF files removed
