@@ -1,0 +1,267 @@
+"""dm-control backend: env checkers, render, walking, determinism, name mapping, model options,
+faults, contacts, obstacle pool, memory."""
+
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+pytest.importorskip("dm_control")
+
+from dm_control import mjcf  # noqa: E402
+from gymnasium.utils.env_checker import check_env as gym_check_env  # noqa: E402
+from stable_baselines3.common.env_checker import check_env as sb3_check_env  # noqa: E402
+
+import footsim  # noqa: E402,F401  (registers the env)
+from footsim.backends.dm_control_backend import N_CYLINDERS, DmControlBackend  # noqa: E402
+from footsim.env import FootstepEnv  # noqa: E402
+from footsim.geometry import Pose2D  # noqa: E402
+from footsim.tasks.scenes import Obstacle, Scene  # noqa: E402
+from footsim.walk.footsteps import DoubleStep  # noqa: E402
+from footsim.walk.ik import LEG_JOINT_NAMES  # noqa: E402
+from footsim.walkcheck import make_backend  # noqa: E402
+
+EMPTY = Scene(goal=Pose2D(100.0, 0.0, 0.0))
+FORWARD = np.array([0.5, 0.0, 0.0, 0.5, 0.0, 0.0])
+
+
+@pytest.fixture(scope="module")
+def backend():
+    b = make_backend("dm_control")
+    yield b
+    b.close()
+
+
+def test_env_checkers_pass():
+    env = gym.make("footsim/FootstepNav-v0", backend="dm_control", obstacles=True)
+    try:
+        assert isinstance(env.unwrapped.backend, DmControlBackend)
+        gym_check_env(env.unwrapped, skip_render_check=True)
+    finally:
+        env.close()
+    env = FootstepEnv(backend="dm_control")
+    try:
+        sb3_check_env(env)
+    finally:
+        env.close()
+
+
+def test_render_rgb_frame_shows_the_goal_marker():
+    env = FootstepEnv(backend={"name": "dm_control", "render_size": [160, 120]}, obstacles=True, render_mode="rgb_array")
+    try:
+        env.reset(seed=3)
+        frame = env.render()
+        bare = env.backend.sim.render(None, 160, 120)
+    finally:
+        env.close()
+    assert frame.shape == (120, 160, 3) and frame.dtype == np.uint8
+    assert frame.std() > 5.0  # not blank
+    assert len(np.unique(frame.reshape(-1, 3), axis=0)) > 50
+    assert bare.shape == frame.shape
+
+
+def test_goal_marker_and_obstacles_are_drawn(backend):
+    from footsim.backends.base import RenderOverlay
+
+    # The camera looks back at the robot from in front-left: a goal and an obstacle behind it are in view.
+    scene = Scene(goal=Pose2D(-1.0, -0.5, 0.5), obstacles=(Obstacle(-1.0, 0.8, 0.2),))
+    backend.reset(EMPTY, np.random.default_rng(0))
+    empty = backend.render()
+    backend.reset(scene, np.random.default_rng(0))
+    bare = backend.render()
+    marked = backend.render(RenderOverlay(goal=scene.goal))
+    assert (bare != empty).any(axis=2).sum() > 500  # the obstacle
+    changed = (marked != bare).any(axis=2)
+    assert changed.sum() > 100  # the goal disc and arrow
+    assert (marked[changed][:, 0].astype(int) - marked[changed][:, 1]).mean() > 30  # red (goal not reached)
+
+
+def test_short_walk_moves_forward_without_falling(backend):
+    start = backend.reset(EMPTY, np.random.default_rng(0))
+    for _ in range(5):
+        result = backend.execute(DoubleStep.from_action(FORWARD, backend.robot.step_limits))
+        assert not result.fell and result.sim_error is None
+    assert result.pose.x - start.x > 0.4  # 5 double steps of ~0.16 m commanded (first one shorter)
+    assert abs(result.pose.y - start.y) < 0.25
+
+
+def test_reset_levels_the_soles_on_the_floor(backend):
+    backend.reset(EMPTY, np.random.default_rng(0))
+    backend.sim.reset_robot(np.array([0.0, 0.0, backend.walk.trunk_height]), dict(backend.robot.walk_ready) | dict(
+        zip(LEG_JOINT_NAMES, backend.engine.standing_joint_targets().tolist())))
+    soles = backend.sim._soles
+    np.testing.assert_allclose(soles.xpos[:, 2].min(), 0.0, atol=1e-9)
+    np.testing.assert_allclose(soles.xmat[0].reshape(3, 3)[2], (0.0, 0.0, 1.0), atol=1e-9)  # left sole level
+
+
+def _trajectory(seed):
+    env = FootstepEnv(backend="dm_control", obstacles=True)
+    try:
+        env.reset(seed=seed)
+        rng = np.random.default_rng(seed)
+        poses = []
+        for _ in range(3):
+            obs, r, term, trunc, info = env.step(rng.uniform(-0.5, 0.5, 6))
+            poses.append(np.concatenate([info["pose"], obs]))
+        return np.array(poses)
+    finally:
+        env.close()
+
+
+def test_same_seed_identical_trajectory():
+    a, b = _trajectory(7), _trajectory(7)
+    np.testing.assert_array_equal(a, b)  # bit-identical poses and observations
+
+
+def test_joint_name_mapping(backend):
+    sim, physics = backend.sim, backend.sim.physics
+    for name in backend.robot.joint_names:
+        joint, actuator = sim.mjcf_model.find("joint", name), sim.mjcf_model.find("actuator", name)
+        assert sim.joints[name] is joint and sim.actuators[name] is actuator
+        assert physics.bind(actuator).trnid[0] == physics.bind(joint).element_id
+        assert physics.named.model.jnt_qposadr[name] == physics.bind(joint).qposadr
+    # targets reach the right joints: a distinct target per leg joint, held until converged
+    backend.reset(EMPTY, np.random.default_rng(0))
+    targets = backend.engine.standing_joint_targets() + np.linspace(-0.06, 0.06, 12)
+    sim.set_leg_targets(targets)
+    np.testing.assert_array_equal(physics.named.data.ctrl[list(LEG_JOINT_NAMES)], targets)
+    physics.model.opt.gravity[:] = 0.0  # lift the robot and drop gravity: nothing biases the joints
+    try:
+        physics.named.data.qpos["root"][2] += 0.3
+        sim.advance(400)
+        reached = physics.named.data.qpos[list(LEG_JOINT_NAMES)]
+    finally:
+        physics.model.opt.gravity[:] = (0.0, 0.0, -9.81)
+    np.testing.assert_allclose(reached, targets, atol=0.03)
+    assert np.argsort(reached).tolist() == np.argsort(targets).tolist()
+
+
+def test_model_options_match_the_mujoco_backend(backend):
+    """Same engine, same options: the compiled models agree (XML rounding aside)."""
+    from footsim.backends.mujoco_backend import MujocoBackend
+    from footsim.config import load_preset
+
+    cfg = load_preset("backend", "dm_control")
+    options = {k: cfg[k] for k in ("torsional_friction", "servo_kp_scale", "servo_damping_scale", "physics_dt",
+                                   "control_dt", "integrator")}
+    ours = backend.sim.physics.model.ptr
+    theirs = MujocoBackend(backend.robot, backend.walk, **options)  # the MuJoCo backend given the same options
+    try:
+        ref = theirs.sim.model
+        for field in ("geom_condim", "geom_friction", "actuator_gainprm", "actuator_biasprm", "dof_damping",
+                      "body_mass", "geom_contype", "geom_conaffinity"):
+            np.testing.assert_allclose(getattr(ours, field), getattr(ref, field), rtol=1e-5, err_msg=field)
+        assert ours.opt.integrator == ref.opt.integrator and ours.opt.timestep == ref.opt.timestep
+        feet = [backend.sim.physics.bind(g).element_id for s in ("left", "right")
+                for g in backend.sim.mjcf_model.find("body", backend.robot.foot_link(s)).get_children("geom")]
+        assert feet and all(ours.geom_condim[g] == 4 for g in feet)
+        assert all(ours.geom_friction[g, 1] == pytest.approx(cfg["torsional_friction"]) for g in feet)
+    finally:
+        theirs.close()
+    with pytest.raises(ValueError, match="servo_kp_scale"):
+        DmControlBackend(backend.robot, backend.walk, servo_kp_scale=0.0)
+    with pytest.raises(ValueError, match="integrator"):
+        DmControlBackend(backend.robot, backend.walk, integrator="leapfrog")
+
+
+def test_blow_up_is_a_sim_error_with_finite_observation(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # MuJoCo may write its warnings to MUJOCO_LOG.TXT in the cwd
+    env = FootstepEnv(backend="dm_control")
+    try:
+        env.reset(seed=1)
+        env.backend.sim.physics.data.qvel[:] = np.nan
+        obs, reward, term, trunc, info = env.step(FORWARD)
+        assert term and info["outcome"] == "sim_error" and "PhysicsError" in info["sim_error"]
+        assert np.all(np.isfinite(obs)) and np.isfinite(reward)
+        env.reset(seed=2)  # and the env recovers on reset
+        assert env.backend.sim.sim_error() is None
+        env.backend.sim.physics.data.qvel[6:] = 1e12  # a huge velocity: MuJoCo's instability warning
+        obs, reward, term, trunc, info = env.step(FORWARD)
+        assert term and info["outcome"] == "sim_error"
+        assert np.all(np.isfinite(obs))
+    finally:
+        env.close()
+
+
+def test_obstacle_contact_is_reported_and_does_not_end_the_episode():
+    scene = Scene(goal=Pose2D(2.0, 0.0, 0.0), obstacles=(Obstacle(0.35, 0.0, 0.15),))
+    env = FootstepEnv(backend="dm_control", obstacles=True)
+    try:
+        env.reset(seed=0, options={"scene": scene})
+        collided = False
+        for _ in range(6):
+            obs, r, term, trunc, info = env.step(FORWARD)
+            collided = collided or info["collided"]
+            if collided or term:
+                break
+        assert collided
+        assert info["outcome"] != "collision"  # 3D: reported, not terminal (collision_ends_episode false)
+    finally:
+        env.close()
+
+
+def test_obstacle_pool_is_placed_and_parked(backend):
+    sim = backend.sim
+    scene = Scene(goal=Pose2D(3.0, 0.0, 0.0), obstacles=(Obstacle(1.0, 0.5, 0.2), Obstacle(2.0, -0.5, 0.3)),
+                  ball=Obstacle(1.5, 0.0, 0.075))
+    backend.reset(scene, np.random.default_rng(0))
+    pool = sim.physics.bind(sim._pool)
+    assert [g.name for g in sim._pool] == [f"obstacle{i}" for i in range(N_CYLINDERS)] + ["ball"]
+    np.testing.assert_allclose(pool.pos[0, :2], (1.0, 0.5))
+    np.testing.assert_allclose(pool.size[1, 0], 0.3)
+    np.testing.assert_allclose(pool.pos[-1], (1.5, 0.0, 0.075))
+    assert all(pool.contype[2:N_CYLINDERS] == 0) and all(pool.rgba[2:N_CYLINDERS, 3] == 0)
+    assert not sim.obstacle_contact()
+    backend.reset(EMPTY, np.random.default_rng(0))  # everything parked again
+    assert (pool.contype == 0).all() and (pool.pos[:, 2] < -50).all()
+    with pytest.raises(ValueError, match="at most"):
+        sim.set_obstacles(Scene(goal=Pose2D(), obstacles=tuple(Obstacle(i, 5.0, 0.1) for i in range(N_CYLINDERS + 1))))
+
+
+def test_mjcf_model_is_dm_control_idiom(backend):
+    sim = backend.sim
+    assert isinstance(sim.mjcf_model, mjcf.RootElement)
+    assert isinstance(sim.physics, mjcf.Physics)
+    assert sim.mjcf_model.find("camera", "track") is not None
+    assert sim.physics.model.opt.timestep == pytest.approx(backend.physics_dt)
+
+
+def _rss_mb():
+    psutil = pytest.importorskip("psutil")
+    return psutil.Process(os.getpid()).memory_info().rss / 2**20
+
+
+def test_many_resets_and_create_close_cycles_do_not_leak(backend):
+    sim = backend.sim
+    joints = dict(backend.robot.walk_ready) | dict(zip(LEG_JOINT_NAMES, backend.engine.standing_joint_targets().tolist()))
+    base = np.array([0.0, 0.0, backend.walk.trunk_height])
+
+    def reset(scene):  # the sim's reset verbs (the driver's settling ticks are plain physics.step calls)
+        sim.set_obstacles(scene)
+        sim.reset_robot(base, joints)
+        sim.advance(2)
+        sim.obstacle_contact()
+
+    for _ in range(50):  # warm up allocators
+        backend.reset(EMPTY, np.random.default_rng(0))
+    before = _rss_mb()
+    rng = np.random.default_rng(0)
+    for i in range(1000):
+        reset(Scene(goal=Pose2D(1.0, 0.0, 0.0), obstacles=(Obstacle(2.0, float(rng.uniform(-1, 1)), 0.2),),
+                    ball=Obstacle(1.2, 0.0, 0.075) if i % 2 else None))
+    after_resets = _rss_mb()
+    for _ in range(3):
+        b = DmControlBackend(backend.robot, backend.walk, render_size=(64, 48))
+        b.render()
+        b.close()
+    mid = _rss_mb()
+    for _ in range(6):  # an unclosed backend with a rendering context holds ~130 MB
+        b = DmControlBackend(backend.robot, backend.walk, render_size=(64, 48))
+        b.render()  # rendering contexts are freed too
+        b.close()
+    end = _rss_mb()
+    assert after_resets - before < 10.0
+    assert end - mid < 10.0, f"RSS grew {end - mid:.1f} MB over 6 create/render/close cycles"
