@@ -214,18 +214,18 @@ def test_create_reset_close_cycles_do_not_leak(backend):
         backend.reset(EMPTY, np.random.default_rng(0))
     before = _rss_mb()
     rng = np.random.default_rng(0)
-    for i in range(300):
+    for i in range(200):
         scene = Scene(goal=Pose2D(1.0, 0.0, 0.0), obstacles=(Obstacle(2.0, float(rng.uniform(-1, 1)), 0.2),),
                       ball=Obstacle(1.2, 0.0, 0.075) if i % 2 else None)
         backend.reset(scene, rng)
     after_resets = _rss_mb()
     paths = []
-    for _ in range(300):
+    for _ in range(200):
         b = PybulletBackend(backend.robot, backend.walk)
         b.reset(EMPTY, rng)
         paths.append(b.sim._urdf_path)
         b.close()
     end = _rss_mb()
-    assert after_resets - before < 10.0, f"RSS grew {after_resets - before:.1f} MB over 300 resets"
-    assert end - after_resets < 10.0, f"RSS grew {end - after_resets:.1f} MB over 300 create/reset/close cycles"
+    assert after_resets - before < 10.0, f"RSS grew {after_resets - before:.1f} MB over 200 resets"
+    assert end - after_resets < 10.0, f"RSS grew {end - after_resets:.1f} MB over 200 create/reset/close cycles"
     assert not any(os.path.exists(p) for p in paths)  # temp URDF files removed
