@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from enum import Enum
+from typing import NamedTuple
 
 import numpy as np
 
@@ -62,17 +63,15 @@ class StepLimits:
         )
 
 
-@dataclass(frozen=True)
-class Footstep:
-    """One footstep relative to the flying foot's resting pose."""
+class Footstep(NamedTuple):
+    """One footstep relative to the flying foot's resting pose (a tuple: cheap on hot paths)."""
 
     x: float = 0.0
     y: float = 0.0
     theta: float = 0.0
 
 
-@dataclass(frozen=True)
-class DoubleStep:
+class DoubleStep(NamedTuple):
     """The unit every controller emits: the right foot's step, then the left foot's."""
 
     first: Footstep  # right foot (flies in left support, phase < 0.5)
@@ -106,8 +105,7 @@ class DoubleStep:
         return (Side.RIGHT, self.first), (Side.LEFT, self.second)
 
 
-@dataclass(frozen=True)
-class FeetState:
+class FeetState(NamedTuple):
     left: Pose2D
     right: Pose2D
 
