@@ -18,7 +18,8 @@ def _row(name: str, times_s, extra: dict | None = None) -> dict:
     row = {"planner": name, "plans": int(t.size),
            "median ms": float(np.median(t)) if t.size else math.nan,
            "p95 ms": float(np.percentile(t, 95)) if t.size else math.nan,
-           "max ms": float(t.max()) if t.size else math.nan}
+           "max ms": float(t.max()) if t.size else math.nan,
+           "complete plan within budget": math.nan}
     row.update(extra or {})
     return row
 
