@@ -148,7 +148,7 @@ def test_blow_up_is_a_sim_error_with_finite_observation():
             else:
                 pybullet.resetBasePositionAndOrientation(sim.robot_id, [0, 0, 1e4], [0, 0, 0, 1],
                                                          physicsClientId=sim.client)
-            assert sim.sim_error() is not None or env.unwrapped.backend._sim_error() is not None
+            assert sim.sim_error() is not None or env.unwrapped.backend._status()[0] is not None
             obs, reward, term, trunc, info = env.step(FORWARD)
             assert term and info["outcome"] == "sim_error", info["outcome"]
             assert np.all(np.isfinite(obs))

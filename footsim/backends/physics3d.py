@@ -152,24 +152,22 @@ class Physics3DBackend(Backend):
         fell = collided = False
         error = None
         ticks = 0
-        check = self.contact_check_every
+        check, substeps = self.contact_check_every, self.substeps
+        set_targets, advance = self.sim.set_leg_targets, self.sim.advance
+        watch_contacts = bool(self.scene.all_obstacles)
         for ticks in range(1, len(targets) + 1):
-            self.sim.set_leg_targets(targets[ticks - 1])
-            self.sim.advance(self.substeps)
+            set_targets(targets[ticks - 1])
+            advance(substeps)
             if ticks % check == 0:
-                error = self._sim_error()
-                if error is not None:
+                error, fell = self._status()
+                if error is not None or fell:
                     break
-                if self._fallen():
-                    fell = True
-                    break
-                if not collided and self.scene.all_obstacles and self.sim.obstacle_contact():
+                if watch_contacts and not collided and self.sim.obstacle_contact():
                     collided = True
                     if self.collision_ends_episode:
                         break
         if error is None and not fell:
-            error = self._sim_error()
-            fell = error is None and self._fallen()
+            error, fell = self._status()
         pose = self.planar_pose() if error is None else Pose2D(math.nan, math.nan, math.nan)
         return StepResult(
             pose=pose, duration_s=ticks * self.control_dt, feet=trajectory.feet, executed=trajectory.executed,
@@ -184,23 +182,23 @@ class Physics3DBackend(Backend):
         return Pose2D(float(position[0]), float(position[1]), math.atan2(rotation[1, 0], rotation[0, 0]))
 
     def _fallen(self) -> bool:
-        _, rotation = self.sim.base_pose()
-        if rotation[2, 2] < 0.0:
-            return True
-        roll, pitch = fused_roll_pitch(rotation)
-        return abs(roll) > self.fall_threshold or abs(pitch) > self.fall_threshold
+        return self._status()[1]
 
-    def _sim_error(self) -> str | None:
-        """The simulator's own verdict, then NaN and out-of-bounds checks of the base."""
+    def _status(self) -> tuple[str | None, bool]:
+        """``(sim error or None, fallen)`` from one read of the base: the simulator's own
+        verdict, NaN and out-of-bounds checks, then fused roll/pitch against the threshold."""
         error = self.sim.sim_error()
         if error is not None:
-            return error
+            return error, False
         position, rotation = self.sim.base_pose()
-        if not (np.all(np.isfinite(position)) and np.all(np.isfinite(rotation))):
-            return "non-finite base pose"
-        if np.abs(position).max() > self.out_of_bounds:
-            return f"base left the ±{self.out_of_bounds} m bounds"
-        return None
+        if not (np.isfinite(position).all() and np.isfinite(rotation).all()):
+            return "non-finite base pose", False
+        if abs(position).max() > self.out_of_bounds:
+            return f"base left the ±{self.out_of_bounds} m bounds", False
+        if rotation[2, 2] < 0.0:
+            return None, True
+        roll, pitch = fused_roll_pitch(rotation)
+        return None, abs(roll) > self.fall_threshold or abs(pitch) > self.fall_threshold
 
     def stop_walking(self) -> float:
         """Run the engine's stop sequence (back to standing); returns its duration [s]."""
