@@ -39,7 +39,8 @@ START = {"freq": 1.0, "double_support_ratio": 0.05, "foot_distance": 0.1799, "fo
          "trunk_pitch": 0.0, "trunk_pitch_p_coef_forward": -0.186, "trunk_pitch_p_coef_turn": -0.457 / 2,
          "trunk_swing": 0.4, "trunk_phase": -0.1517, "trunk_x_offset": -0.01, "trunk_y_offset": 0.0037,
          "trunk_z_movement": 0.0155, "first_step_swing_factor": 1.0,
-         "physics_dt": 0.005, "torsional_friction": 0.05, "servo_kp_scale": 2.0, "servo_damping_scale": 0.3}
+         "physics_dt": 0.005, "torsional_friction": 0.05, "servo_kp_scale": 2.0, "servo_damping_scale": 0.3,
+         "servo_kv": 4.0}
 
 
 # Not searched: trunk_y_offset stays 0.  The robot and the engine are mirror-symmetric (checked
@@ -90,7 +91,8 @@ def main(argv: list[str]) -> None:
         options = {"physics_dt": trial.suggest_categorical("physics_dt", [0.005, 0.01]), "control_dt": 0.01,
                    "torsional_friction": trial.suggest_float("torsional_friction", 0.02, 0.1, log=True),
                    "servo_kp_scale": trial.suggest_float("servo_kp_scale", 1.5, 3.0),
-                   "servo_damping_scale": trial.suggest_float("servo_damping_scale", 0.2, 0.6)}
+                   "servo_damping_scale": trial.suggest_float("servo_damping_scale", 0.2, 0.6),
+                   "servo_kv": trial.suggest_float("servo_kv", 1.0, 8.0)}
         cost, detail = evaluate(name, walk, options, commanded, sequences)
         trial.set_user_attr("detail", detail)
         return cost
@@ -103,7 +105,7 @@ def main(argv: list[str]) -> None:
             backend_cfg = fconf.load_preset("backend", {"name": name})
             current = {k: base[k] for k in RANGES}
             current.update({k: backend_cfg[k] for k in ("physics_dt", "torsional_friction", "servo_kp_scale",
-                                                        "servo_damping_scale")})
+                                                        "servo_damping_scale", "servo_kv")})
             study.enqueue_trial(current, skip_if_exists=True)
         if "enqueue" in args:  # a JSON file of parameters to try early (e.g. a previous study's best)
             import json

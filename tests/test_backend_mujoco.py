@@ -100,6 +100,7 @@ def test_joint_name_mapping(backend):
     base = backend.engine.standing_joint_targets()
     targets = base + np.linspace(-0.06, 0.06, 12)
     sim.set_leg_targets(targets)
+    sim.set_leg_targets(targets)  # twice: a held target has no velocity feed-forward (servo_kv) in ctrl
     for name, target in zip(LEG_JOINT_NAMES, targets):
         assert sim.data.ctrl[sim.actuator[name]] == target
     # lift the robot off the ground so gravity does not bias the joints
@@ -112,6 +113,25 @@ def test_joint_name_mapping(backend):
         sim.model.opt.gravity[:] = (0.0, 0.0, -9.81)
     np.testing.assert_allclose(reached, targets, atol=0.03)
     assert np.argsort(reached).tolist() == np.argsort(targets).tolist()
+
+
+def test_servo_kv_feeds_the_target_velocity_forward(backend):
+    """servo_kv: force = kp (q_t - q) + kv (qdot_t - qdot), qdot_t from consecutive targets."""
+    sim = backend.sim
+    if sim.servo_kv <= 0:
+        pytest.skip("servo_kv is off in conf/backend/mujoco.yaml")
+    backend.reset(EMPTY, np.random.default_rng(0))
+    m, legs = sim.model, sim._leg_ctrl
+    np.testing.assert_allclose(m.actuator_biasprm[legs, 2], -sim.servo_kv)
+    base = backend.engine.standing_joint_targets()
+    sim.set_leg_targets(base)
+    np.testing.assert_allclose(sim.data.ctrl[legs], base)  # at rest after reset: no feed-forward
+    ramp = base + 0.01  # 0.01 rad per control tick
+    sim.set_leg_targets(ramp)
+    velocity = 0.01 / backend.control_dt
+    np.testing.assert_allclose(sim.data.ctrl[legs], ramp + sim.servo_kv / m.actuator_gainprm[legs, 0] * velocity)
+    with pytest.raises(ValueError, match="servo_kv"):
+        MujocoBackend(backend.robot, backend.walk, servo_kv=-1.0)
 
 
 def test_blow_up_is_a_sim_error_with_finite_observation(tmp_path, monkeypatch):

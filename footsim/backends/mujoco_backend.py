@@ -135,10 +135,17 @@ class MujocoSim(PhysicsSim):
 
     def __init__(self, integrator: str = "implicitfast", max_render_size: int = 1024,
                  torsional_friction: float | None = None, servo_kp_scale: float = 1.0,
-                 servo_damping_scale: float = 1.0):
+                 servo_damping_scale: float = 1.0, servo_kv: float = 0.0, control_dt: float = 0.01):
         self.integrator = integrator
         self.torsional_friction, self.servo_kp_scale, self.servo_damping_scale = check_model_options(
             torsional_friction, servo_kp_scale, servo_damping_scale)
+        if not (math.isfinite(servo_kv) and servo_kv >= 0):
+            raise ValueError(f"backend.servo_kv must be >= 0, got {servo_kv!r}")
+        if not (math.isfinite(control_dt) and control_dt > 0):
+            raise ValueError(f"control_dt must be > 0, got {control_dt!r}")
+        self.servo_kv, self.control_dt = float(servo_kv), float(control_dt)
+        self._ff_gain = None  # kv / kp per leg actuator when servo_kv > 0
+        self._prev_targets = np.zeros(len(LEG_JOINT_NAMES))
         self.max_render_size = int(max_render_size)
         self.model = self.data = None
         self._renderer = None
@@ -203,6 +210,14 @@ class MujocoSim(PhysicsSim):
             if m.actuator_trnid[a, 0] != jid(n):
                 raise ValueError(f"actuator {n!r} does not drive joint {n!r}")
         self._leg_ctrl = np.array([self.actuator[n] for n in LEG_JOINT_NAMES], dtype=np.intp)
+        if self.servo_kv > 0:
+            # The servo's D term acts on the tracking error, kv (target velocity - velocity), like a
+            # Dynamixel's PID, not on the absolute joint velocity (that is what joint damping
+            # does, and it caps the joint speed).  MuJoCo's position actuator gives
+            # kp (ctrl - q) - kv qdot; set_leg_targets adds the target velocity as a feed-forward
+            # kv/kp * qdot_target to ctrl, which makes it kp (q_t - q) + kv (qdot_t - qdot).
+            m.actuator_biasprm[self._leg_ctrl, 2] = -self.servo_kv
+            self._ff_gain = self.servo_kv / m.actuator_gainprm[self._leg_ctrl, 0] / self.control_dt
         self._obstacle_geoms = np.array([mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, n) for n in names], dtype=np.intp)
         self._ball_geom = int(self._obstacle_geoms[-1])
         self._obstacle_mask = np.zeros(m.ngeom, dtype=bool)
@@ -249,6 +264,8 @@ class MujocoSim(PhysicsSim):
         for name, angle in joint_positions.items():
             d.qpos[self.joint_qpos[name]] = angle
             d.ctrl[self.actuator[name]] = angle
+        # Target velocities restart from rest at these angles.
+        self._prev_targets = np.array([joint_positions.get(n, d.qpos[self.joint_qpos[n]]) for n in LEG_JOINT_NAMES])
         # "Upright" means soles flat: the walk's standing pose pitches the trunk (trunk_pitch),
         # so tilt the base by the inverse of the left sole's roll/pitch (yaw kept), then lower
         # the robot so the lowest sole touches the floor.  Otherwise it starts on a heel or toe
@@ -265,7 +282,13 @@ class MujocoSim(PhysicsSim):
         return float(self.data.site_xpos[sid, 2])  # the sole site is on the bottom face
 
     def set_leg_targets(self, targets: np.ndarray) -> None:
-        self.data.ctrl[self._leg_ctrl] = targets
+        if self._ff_gain is None:
+            self.data.ctrl[self._leg_ctrl] = targets
+            return
+        # Target velocity = backward difference over one control tick (targets arrive every control_dt).
+        targets = np.asarray(targets, dtype=float)
+        self.data.ctrl[self._leg_ctrl] = targets + self._ff_gain * (targets - self._prev_targets)
+        self._prev_targets = targets.copy()
 
     def advance(self, n_steps: int) -> None:
         self._step(self.model, self.data, n_steps)
@@ -337,10 +360,12 @@ class MujocoBackend(Physics3DBackend):
         torsional_friction: float | None = None,
         servo_kp_scale: float = 1.0,
         servo_damping_scale: float = 1.0,
+        servo_kv: float = 0.0,
     ):
         super().__init__(
             robot, walk, MujocoSim(integrator=integrator, torsional_friction=torsional_friction, servo_kp_scale=servo_kp_scale,
-                      servo_damping_scale=servo_damping_scale), control_dt=control_dt, physics_dt=physics_dt,
+                      servo_damping_scale=servo_damping_scale, servo_kv=servo_kv, control_dt=control_dt),
+            control_dt=control_dt, physics_dt=physics_dt,
             fall_threshold=fall_threshold, collision_ends_episode=collision_ends_episode,
             contact_check_every=contact_check_every, settle_time=settle_time, out_of_bounds=out_of_bounds,
             render_size=tuple(render_size),
