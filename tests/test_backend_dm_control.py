@@ -1,6 +1,7 @@
 """dm-control backend: env checkers, render, walking, determinism, name mapping, model options,
 faults, contacts, obstacle pool, memory."""
 
+import gc
 import os
 
 os.environ.setdefault("MUJOCO_GL", "egl")
@@ -231,6 +232,7 @@ def test_mjcf_model_is_dm_control_idiom(backend):
 
 def _rss_mb():
     psutil = pytest.importorskip("psutil")
+    gc.collect()
     return psutil.Process(os.getpid()).memory_info().rss / 2**20
 
 
@@ -253,15 +255,24 @@ def test_many_resets_and_create_close_cycles_do_not_leak(backend):
         reset(Scene(goal=Pose2D(1.0, 0.0, 0.0), obstacles=(Obstacle(2.0, float(rng.uniform(-1, 1)), 0.2),),
                     ball=Obstacle(1.2, 0.0, 0.075) if i % 2 else None))
     after_resets = _rss_mb()
+    assert after_resets - before < 10.0, f"RSS grew {after_resets - before:.1f} MB over 1000 resets"
+
     for _ in range(3):
+        DmControlBackend(backend.robot, backend.walk).close()
+    start = _rss_mb()
+    for _ in range(20):  # a backend left open holds ~1.7 MB (model, data, mjcf tree)
+        DmControlBackend(backend.robot, backend.walk).close()
+    grown = _rss_mb() - start
+    assert grown < 10.0, f"RSS grew {grown:.1f} MB over 20 create/close cycles"
+
+    for _ in range(2):
         b = DmControlBackend(backend.robot, backend.walk, render_size=(64, 48))
         b.render()
         b.close()
-    mid = _rss_mb()
-    for _ in range(6):  # an unclosed backend with a rendering context holds ~130 MB
-        b = DmControlBackend(backend.robot, backend.walk, render_size=(64, 48))
-        b.render()  # rendering contexts are freed too
+    start = _rss_mb()
+    for _ in range(5):  # one whose rendering context is not freed holds ~130 MB; the GL driver
+        b = DmControlBackend(backend.robot, backend.walk, render_size=(64, 48))  # warms up for a few more
+        b.render()
         b.close()
-    end = _rss_mb()
-    assert after_resets - before < 10.0
-    assert end - mid < 10.0, f"RSS grew {end - mid:.1f} MB over 6 create/render/close cycles"
+    grown = _rss_mb() - start
+    assert grown < 60.0, f"RSS grew {grown:.1f} MB over 5 create/render/close cycles"
