@@ -128,6 +128,7 @@ def test_joint_name_mapping(backend):
     backend.reset(EMPTY, np.random.default_rng(0))
     targets = backend.engine.standing_joint_targets() + np.linspace(-0.06, 0.06, 12)
     sim.set_leg_targets(targets)
+    sim.set_leg_targets(targets)  # twice: a held target has no velocity feed-forward (servo_kv) in ctrl
     np.testing.assert_array_equal(physics.named.data.ctrl[list(LEG_JOINT_NAMES)], targets)
     physics.model.opt.gravity[:] = 0.0  # lift the robot and drop gravity: nothing biases the joints
     try:
@@ -146,8 +147,8 @@ def test_model_options_match_the_mujoco_backend(backend):
     from footsim.config import load_preset
 
     cfg = load_preset("backend", "dm_control")
-    options = {k: cfg[k] for k in ("torsional_friction", "servo_kp_scale", "servo_damping_scale", "physics_dt",
-                                   "control_dt", "integrator")}
+    options = {k: cfg[k] for k in ("torsional_friction", "servo_kp_scale", "servo_damping_scale", "servo_kv",
+                                   "physics_dt", "control_dt", "integrator")}
     ours = backend.sim.physics.model.ptr
     theirs = MujocoBackend(backend.robot, backend.walk, **options)  # the MuJoCo backend given the same options
     try:
@@ -166,6 +167,24 @@ def test_model_options_match_the_mujoco_backend(backend):
         DmControlBackend(backend.robot, backend.walk, servo_kp_scale=0.0)
     with pytest.raises(ValueError, match="integrator"):
         DmControlBackend(backend.robot, backend.walk, integrator="leapfrog")
+
+
+def test_servo_kv_feeds_the_target_velocity_forward(backend):
+    """servo_kv: force = kp (q_t - q) + kv (qdot_t - qdot), qdot_t from consecutive targets."""
+    sim = backend.sim
+    if sim.servo_kv <= 0:
+        pytest.skip("servo_kv is off in conf/backend/dm_control.yaml")
+    backend.reset(EMPTY, np.random.default_rng(0))
+    legs = sim._legs
+    np.testing.assert_allclose(legs.biasprm[:, 2], -sim.servo_kv)
+    base = backend.engine.standing_joint_targets()
+    sim.set_leg_targets(base)
+    np.testing.assert_allclose(legs.ctrl, base)  # at rest after reset: no feed-forward
+    ramp = base + 0.01  # 0.01 rad per control tick
+    sim.set_leg_targets(ramp)
+    np.testing.assert_allclose(legs.ctrl, ramp + sim.servo_kv / legs.gainprm[:, 0] * 0.01 / backend.control_dt)
+    with pytest.raises(ValueError, match="servo_kv"):
+        DmControlBackend(backend.robot, backend.walk, servo_kv=-1.0)
 
 
 def test_blow_up_is_a_sim_error_with_finite_observation(tmp_path, monkeypatch):

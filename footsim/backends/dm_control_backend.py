@@ -5,7 +5,7 @@ dm_control's own idiom, driven by the shared 3D driver.
   (:func:`footsim.robots.mjcf.build_mjcf`, floor and light included).  The backend edits that
   tree with the ``mjcf`` API before compiling: integrator and offscreen buffer size, the model
   options it shares with the MuJoCo backend (torsional friction on the feet, servo kp and
-  damping scales — validated by the same helper), a tracking camera on the torso, and the
+  damping scales, servo_kv — validated by the same helpers), a tracking camera on the torso, and the
   obstacle pool (:data:`~footsim.backends.mujoco_backend.N_CYLINDERS` cylinders and a sphere for
   the ball, added to the world body).
 * **Physics** — ``mjcf.Physics.from_mjcf_model``.  Everything is addressed through
@@ -48,6 +48,7 @@ from footsim.backends.mujoco_backend import (
     CAMERA_ELEVATION,
     N_CYLINDERS,
     OBSTACLE_HEIGHT,
+    ServoFeedForward,
     check_model_options,
     draw_overlay,
     fatal_warning_ids,
@@ -82,12 +83,15 @@ class DmControlSim(PhysicsSim):
 
     def __init__(self, integrator: str = "implicitfast", max_render_size: int = 1024,
                  torsional_friction: float | None = None, servo_kp_scale: float = 1.0,
-                 servo_damping_scale: float = 1.0):
+                 servo_damping_scale: float = 1.0, servo_kv: float = 0.0, control_dt: float = 0.01):
         if integrator not in _INTEGRATORS:
             raise ValueError(f"backend.integrator must be one of {', '.join(_INTEGRATORS)}; got {integrator!r}")
         self.integrator = integrator
         self.torsional_friction, self.servo_kp_scale, self.servo_damping_scale = check_model_options(
             torsional_friction, servo_kp_scale, servo_damping_scale)
+        ServoFeedForward(servo_kv, np.ones(1), control_dt)  # validates servo_kv and control_dt
+        self.servo_kv, self.control_dt = float(servo_kv), float(control_dt)
+        self._feed_forward: ServoFeedForward | None = None  # when servo_kv > 0
         self.max_render_size = int(max_render_size)
         self.mjcf_model = self.physics = None
         self._error: str | None = None
@@ -136,6 +140,8 @@ class DmControlSim(PhysicsSim):
                 raise ValueError(f"actuator {n!r} does not drive joint {n!r}")
         self._root = physics.bind(find("joint", FREE_JOINT))
         self._legs = physics.bind([self.actuators[n] for n in LEG_JOINT_NAMES])
+        if self.servo_kv > 0:  # the servo D term on the tracking error (the MuJoCo backend's helper)
+            self._feed_forward = ServoFeedForward(self.servo_kv, self._legs.gainprm[:, 0], self.control_dt)
         # Hot path (every control tick / check): views into mjData at the bound elements' addresses
         # (a Binding attribute access costs ~20 µs; these are plain numpy views).
         data = physics.data
@@ -168,6 +174,14 @@ class DmControlSim(PhysicsSim):
                 gain[0] *= self.servo_kp_scale
                 bias[1] *= self.servo_kp_scale
                 actuator.gainprm, actuator.biasprm = gain, bias
+        if self.servo_kv > 0:  # leg servos: velocity gain kv (bias -kv qdot), target velocity fed forward in ctrl
+            for name in LEG_JOINT_NAMES:
+                actuator = model.find("actuator", name)
+                bias = np.zeros(3)
+                given = np.array(actuator.biasprm, dtype=float)
+                bias[:len(given)] = given[:3]
+                bias[2] = -self.servo_kv
+                actuator.biasprm = bias
         if self.servo_damping_scale != 1.0:  # joint damping (the servos' back-EMF drag) of the robot joints
             for name in robot.joint_names:
                 joint = model.find("joint", name)
@@ -203,6 +217,8 @@ class DmControlSim(PhysicsSim):
             physics.bind([self.joints[n] for n in names]).qpos = angles
             physics.bind([self.actuators[n] for n in names]).ctrl = angles
             self._root.qpos = root
+        if self._feed_forward is not None:  # target velocities restart from rest at these angles
+            self._feed_forward.reset(physics.bind([self.actuators[n] for n in LEG_JOINT_NAMES]).ctrl)
         # "Upright" means soles flat: the standing pose pitches the trunk, so tilt the base to
         # level the left sole (yaw kept), then lower it until the lowest sole touches the floor
         # (the MuJoCo backend's levelling, shared helper).
@@ -214,7 +230,8 @@ class DmControlSim(PhysicsSim):
         physics.forward()
 
     def set_leg_targets(self, targets: np.ndarray) -> None:
-        self._ctrl[self._leg_ids] = targets  # = self._legs.ctrl = targets, without the Binding overhead
+        ff = self._feed_forward  # = self._legs.ctrl = targets, below without the Binding overhead
+        self._ctrl[self._leg_ids] = targets if ff is None else ff.ctrl(targets)
 
     def advance(self, n_steps: int) -> None:
         if self._error is not None:
@@ -280,12 +297,14 @@ class DmControlBackend(Physics3DBackend):
         torsional_friction: float | None = None,
         servo_kp_scale: float = 1.0,
         servo_damping_scale: float = 1.0,
+        servo_kv: float = 0.0,
         max_render_size: int = 1024,
     ):
         super().__init__(
             robot, walk,
             DmControlSim(integrator=integrator, max_render_size=max_render_size, torsional_friction=torsional_friction,
-                         servo_kp_scale=servo_kp_scale, servo_damping_scale=servo_damping_scale),
+                         servo_kp_scale=servo_kp_scale, servo_damping_scale=servo_damping_scale,
+                         servo_kv=servo_kv, control_dt=control_dt),
             control_dt=control_dt, physics_dt=physics_dt, fall_threshold=fall_threshold,
             collision_ends_episode=collision_ends_episode, contact_check_every=contact_check_every,
             settle_time=settle_time, out_of_bounds=out_of_bounds, render_size=tuple(render_size),

@@ -59,6 +59,34 @@ def check_model_options(torsional_friction: float | None, servo_kp_scale: float,
     return (None if torsional_friction is None else float(torsional_friction)), float(servo_kp_scale), float(servo_damping_scale)
 
 
+class ServoFeedForward:
+    """The servo D term on the tracking error, for position actuators with velocity gain ``kv``.
+
+    MuJoCo's position actuator gives ``kp (ctrl - q) - kv qdot``; feeding the target velocity
+    forward as ``ctrl = q_t + kv/kp * qdot_t`` makes it ``kp (q_t - q) + kv (qdot_t - qdot)``
+    (a Dynamixel's PID, not a speed-capping damper).  ``qdot_t`` is the backward difference of
+    consecutive targets, which arrive every ``control_dt``.
+    """
+
+    def __init__(self, servo_kv: float, kp: np.ndarray, control_dt: float):
+        if not (math.isfinite(servo_kv) and servo_kv >= 0):
+            raise ValueError(f"backend.servo_kv must be >= 0, got {servo_kv!r}")
+        if not (math.isfinite(control_dt) and control_dt > 0):
+            raise ValueError(f"control_dt must be > 0, got {control_dt!r}")
+        self.gain = float(servo_kv) / np.asarray(kp, dtype=float) / float(control_dt)
+        self.previous = np.zeros(len(self.gain))
+
+    def reset(self, targets: np.ndarray) -> None:
+        """Start from rest at ``targets`` (no feed-forward until they change)."""
+        self.previous = np.array(targets, dtype=float)
+
+    def ctrl(self, targets: np.ndarray) -> np.ndarray:
+        targets = np.asarray(targets, dtype=float)
+        out = targets + self.gain * (targets - self.previous)
+        self.previous = targets.copy()
+        return out
+
+
 def obstacle_geometry(x: float, y: float, r: float, ball: bool):
     """``(size, pos, rbound, aabb)`` of a pool geom placed as an obstacle cylinder or the ball."""
     if ball:
@@ -139,13 +167,9 @@ class MujocoSim(PhysicsSim):
         self.integrator = integrator
         self.torsional_friction, self.servo_kp_scale, self.servo_damping_scale = check_model_options(
             torsional_friction, servo_kp_scale, servo_damping_scale)
-        if not (math.isfinite(servo_kv) and servo_kv >= 0):
-            raise ValueError(f"backend.servo_kv must be >= 0, got {servo_kv!r}")
-        if not (math.isfinite(control_dt) and control_dt > 0):
-            raise ValueError(f"control_dt must be > 0, got {control_dt!r}")
+        ServoFeedForward(servo_kv, np.ones(1), control_dt)  # validates servo_kv and control_dt
         self.servo_kv, self.control_dt = float(servo_kv), float(control_dt)
-        self._ff_gain = None  # kv / kp per leg actuator when servo_kv > 0
-        self._prev_targets = np.zeros(len(LEG_JOINT_NAMES))
+        self._feed_forward: ServoFeedForward | None = None  # when servo_kv > 0
         self.max_render_size = int(max_render_size)
         self.model = self.data = None
         self._renderer = None
@@ -217,7 +241,7 @@ class MujocoSim(PhysicsSim):
             # kp (ctrl - q) - kv qdot; set_leg_targets adds the target velocity as a feed-forward
             # kv/kp * qdot_target to ctrl, which makes it kp (q_t - q) + kv (qdot_t - qdot).
             m.actuator_biasprm[self._leg_ctrl, 2] = -self.servo_kv
-            self._ff_gain = self.servo_kv / m.actuator_gainprm[self._leg_ctrl, 0] / self.control_dt
+            self._feed_forward = ServoFeedForward(self.servo_kv, m.actuator_gainprm[self._leg_ctrl, 0], self.control_dt)
         self._obstacle_geoms = np.array([mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, n) for n in names], dtype=np.intp)
         self._ball_geom = int(self._obstacle_geoms[-1])
         self._obstacle_mask = np.zeros(m.ngeom, dtype=bool)
@@ -264,8 +288,8 @@ class MujocoSim(PhysicsSim):
         for name, angle in joint_positions.items():
             d.qpos[self.joint_qpos[name]] = angle
             d.ctrl[self.actuator[name]] = angle
-        # Target velocities restart from rest at these angles.
-        self._prev_targets = np.array([joint_positions.get(n, d.qpos[self.joint_qpos[n]]) for n in LEG_JOINT_NAMES])
+        if self._feed_forward is not None:  # target velocities restart from rest at these angles
+            self._feed_forward.reset([joint_positions.get(n, d.qpos[self.joint_qpos[n]]) for n in LEG_JOINT_NAMES])
         # "Upright" means soles flat: the walk's standing pose pitches the trunk (trunk_pitch),
         # so tilt the base by the inverse of the left sole's roll/pitch (yaw kept), then lower
         # the robot so the lowest sole touches the floor.  Otherwise it starts on a heel or toe
@@ -282,13 +306,8 @@ class MujocoSim(PhysicsSim):
         return float(self.data.site_xpos[sid, 2])  # the sole site is on the bottom face
 
     def set_leg_targets(self, targets: np.ndarray) -> None:
-        if self._ff_gain is None:
-            self.data.ctrl[self._leg_ctrl] = targets
-            return
-        # Target velocity = backward difference over one control tick (targets arrive every control_dt).
-        targets = np.asarray(targets, dtype=float)
-        self.data.ctrl[self._leg_ctrl] = targets + self._ff_gain * (targets - self._prev_targets)
-        self._prev_targets = targets.copy()
+        ff = self._feed_forward
+        self.data.ctrl[self._leg_ctrl] = targets if ff is None else ff.ctrl(targets)
 
     def advance(self, n_steps: int) -> None:
         self._step(self.model, self.data, n_steps)
