@@ -56,6 +56,7 @@ from footsim.backends.mujoco_backend import (
     levelling_quat,
     obstacle_geometry,
 )
+from footsim.backends.mujoco_randomization import MujocoRandomization
 from footsim.backends.physics3d import DEFAULT_FALL_THRESHOLD, Physics3DBackend, PhysicsSim, quat_to_matrix
 from footsim.robots.mjcf import CONTACT_FRICTION, FREE_JOINT, build_mjcf, sole_site
 from footsim.robots.spec import RobotSpec
@@ -78,7 +79,7 @@ def _camera_frame() -> tuple[np.ndarray, np.ndarray]:
     return -CAMERA_DISTANCE * forward, np.concatenate([right, up])
 
 
-class DmControlSim(PhysicsSim):
+class DmControlSim(MujocoRandomization, PhysicsSim):  # randomization verbs: mujoco_randomization
     """``PhysicsSim`` on dm_control: an ``mjcf`` model, ``mjcf.Physics``, bindings by name."""
 
     def __init__(self, integrator: str = "implicitfast", max_render_size: int = 1024,

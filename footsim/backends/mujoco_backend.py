@@ -22,6 +22,7 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
     os.environ["MUJOCO_GL"] = "egl"  # headless rendering; must be set before mujoco is imported
 
 from footsim.backends.base import RenderOverlay
+from footsim.backends.mujoco_randomization import MujocoRandomization
 from footsim.backends.physics3d import DEFAULT_FALL_THRESHOLD, Physics3DBackend, PhysicsSim
 from footsim.robots.mjcf import FREE_JOINT, build_mjcf, import_mujoco
 from footsim.robots.spec import RobotSpec
@@ -158,7 +159,7 @@ def draw_overlay(scene, overlay: RenderOverlay) -> None:
                 mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_LINE, 2.0, start, np.array([end[0], end[1], 0.02]))
 
 
-class MujocoSim(PhysicsSim):
+class MujocoSim(MujocoRandomization, PhysicsSim):  # randomization verbs: mujoco_randomization
     """``PhysicsSim`` on the ``mujoco`` bindings (position actuators, implicitfast)."""
 
     def __init__(self, integrator: str = "implicitfast", max_render_size: int = 1024,

@@ -8,8 +8,10 @@ bookkeeping, timing and the planar pose — lives here, once.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from abc import ABC, abstractmethod
+from collections import deque
 
 import numpy as np
 
@@ -21,6 +23,13 @@ from footsim.walk.engine import QuinticWalk
 from footsim.walk.footsteps import DoubleStep, FootstepGeometry, Side
 from footsim.walk.ik import LEG_JOINT_NAMES
 from footsim.walk.params import WalkParams
+
+#: Randomization terms the driver applies itself, on every 3D backend (the sim's own terms are
+#: in ``PhysicsSim.capabilities``).
+DRIVER_TERMS = frozenset({"control_latency", "push_force", "push_duration", "push_interval",
+                          "walk_freq_scale", "walk_trunk_height_scale"})
+#: Push timing when a preset sets ``push_force`` but not these [s].
+DEFAULT_PUSH_DURATION, DEFAULT_PUSH_INTERVAL = 0.1, 2.0
 
 #: Fused roll or pitch beyond this counts as a fall [rad].  Walking tilts stay below ~0.25 rad;
 #: past 0.7 rad (40°) the open-loop walk engine cannot recover.
@@ -51,6 +60,9 @@ def quat_to_matrix(q: np.ndarray) -> np.ndarray:
 
 class PhysicsSim(ABC):
     """The physics verbs a 3D backend provides.  Joints are addressed by name at ``build``."""
+
+    #: Physics randomization terms this sim applies in ``apply_physics_randomization``.
+    capabilities: frozenset[str] = frozenset()
 
     @abstractmethod
     def build(self, robot: RobotSpec, physics_dt: float) -> None:
@@ -83,6 +95,20 @@ class PhysicsSim(ABC):
     def sim_error(self) -> str | None:
         """A reason if the simulation became invalid (NaN state, instability), else None."""
         return None
+
+    def apply_base_force(self, force_xyz: np.ndarray) -> None:
+        """Apply this external force [N] (world frame) at the torso's centre of mass on every
+        physics tick until it is changed (zeros: no force).  Cleared by nothing else."""
+        raise NotImplementedError(f"{type(self).__name__} cannot push the torso")
+
+    def apply_physics_randomization(self, values: dict[str, float]) -> None:
+        """Set the model to NOMINAL (as built) modified by ``values`` (terms of ``capabilities``;
+        a term not in ``values`` is back at nominal), so nothing compounds across episodes.
+        ``terrain_slope`` comes with ``terrain_slope_direction`` [rad] (the downhill azimuth,
+        drawn by the driver).  Called before ``reset_robot`` (and, for per-step terms, between
+        double steps)."""
+        if set(values) - {"terrain_slope_direction"}:
+            raise ValueError(f"{type(self).__name__} cannot apply randomization terms {sorted(values)}")
 
     def render(self, overlay: RenderOverlay | None, width: int, height: int) -> np.ndarray | None:
         return None
@@ -128,32 +154,138 @@ class Physics3DBackend(Backend):
         self.out_of_bounds = float(out_of_bounds)
         self.render_size = tuple(render_size)
         self.geometry = FootstepGeometry(robot.step_limits, robot.foot_length, robot.foot_width, walk.foot_distance)
-        limits = np.vstack([robot.leg_limits(Side.LEFT), robot.leg_limits(Side.RIGHT)])
-        self.engine = QuinticWalk(walk, self.geometry, robot.leg_geometry, self.control_dt, joint_limits=limits)
+        self._joint_limits = np.vstack([robot.leg_limits(Side.LEFT), robot.leg_limits(Side.RIGHT)])
+        self.engine = QuinticWalk(walk, self.geometry, robot.leg_geometry, self.control_dt, joint_limits=self._joint_limits)
         self.sim.build(robot, self.physics_dt)
         self.scene: Scene | None = None
+        # Randomization state (see apply_randomization): the walk actually used, latency, pushes.
+        self.walk_nominal = self.walk_current = walk
+        self._values: dict[str, float] = {}  # the randomization values in force (merged)
+        self._sim_values: dict[str, float] = {}  # what the sim was last given
+        self._sim_dirty = False
+        self._latency = 0
+        self._delay: deque | None = None  # the last latency + 1 joint targets
+        self._push_ticks: tuple[int, int] | None = None  # (interval, duration) in control ticks
+        self._push_force = 0.0
+        self._tick = 0  # control ticks since reset
+        self._next_push = self._push_end = -1
+        self._rng = np.random.default_rng(0)
+        self.randomization_detail: dict[str, float] = {}  # directions drawn from the backend rng
+
+    # -- randomization --------------------------------------------------------------------
+    @property
+    def capabilities(self) -> frozenset[str]:
+        """The driver's terms (latency, pushes, walk jitter) and the sim's physics terms."""
+        return DRIVER_TERMS | self.sim.capabilities
+
+    def apply_randomization(self, values: dict[str, float]) -> None:
+        """Record drawn values.  Before ``reset`` (per-episode draw) they take effect at reset;
+        between double steps (per-step terms) the sim terms are re-applied before the next
+        ``execute`` and the driver terms take effect at once (walk jitter: at the next reset)."""
+        unsupported = sorted(set(values) - self.capabilities)
+        if unsupported:
+            raise ValueError(f"backend {self.name!r} cannot apply randomization terms {unsupported}")
+        for name in ("walk_freq_scale", "walk_trunk_height_scale", "push_duration", "push_interval"):
+            if name in values and not values[name] > 0:
+                raise ValueError(f"randomization {name} must be > 0, got {values[name]}")
+        self._values.update(values)
+        if set(values) & self.sim.capabilities:
+            self._sim_dirty = True
+        self._latency = max(0, int(round(self._values.get("control_latency", 0.0))))
+        if "push_force" in self._values:
+            duration = self._values.get("push_duration", DEFAULT_PUSH_DURATION)
+            interval = self._values.get("push_interval", DEFAULT_PUSH_INTERVAL)
+            ticks = (max(1, int(round(interval / self.control_dt))), max(1, int(round(duration / self.control_dt))))
+            if self._push_ticks is not None and ticks[0] != self._push_ticks[0] and self._push_end < 0:
+                self._next_push = self._tick + ticks[0]  # a new interval counts from now
+            self._push_ticks = ticks
+            self._push_force = abs(float(self._values["push_force"]))
+        elif "push_duration" in values or "push_interval" in values:
+            raise ValueError("randomization push_duration / push_interval need push_force")
+
+    def _apply_sim_randomization(self, direction_rng: np.random.Generator | None) -> None:
+        sim_values = {k: v for k, v in self._values.items() if k in self.sim.capabilities}
+        if "terrain_slope" in sim_values:
+            if direction_rng is not None or "terrain_slope_direction" not in self.randomization_detail:
+                rng = direction_rng if direction_rng is not None else self._rng
+                self.randomization_detail["terrain_slope_direction"] = float(rng.uniform(-math.pi, math.pi))
+            sim_values["terrain_slope_direction"] = self.randomization_detail["terrain_slope_direction"]
+        if sim_values or self._sim_values:  # also back to nominal when the terms are gone
+            self.sim.apply_physics_randomization(sim_values)
+        self._sim_values = sim_values
+        self._sim_dirty = False
+
+    def _rebuild_walk(self) -> None:
+        v = self._values
+        walk = dataclasses.replace(
+            self.walk_nominal, freq=self.walk_nominal.freq * v.get("walk_freq_scale", 1.0),
+            trunk_height=self.walk_nominal.trunk_height * v.get("walk_trunk_height_scale", 1.0))
+        if walk != self.walk_current:
+            self.walk_current = walk
+            self.engine = QuinticWalk(walk, self.geometry, self.robot.leg_geometry, self.control_dt,
+                                      joint_limits=self._joint_limits)
+
+    def _send_targets(self, target: np.ndarray) -> None:
+        """Joint targets through the latency line (``control_latency`` ticks late) and the push
+        schedule; one call per control tick."""
+        if self._latency:
+            line = self._delay
+            if line is None or line.maxlen != self._latency + 1:  # latency redrawn mid-episode
+                line = self._delay = deque([line[-1] if line else target] * (self._latency + 1), maxlen=self._latency + 1)
+            line.append(target)
+            target = line[0]
+        self.sim.set_leg_targets(target)
+        if self._push_ticks is not None:
+            tick = self._tick
+            if tick == self._push_end:
+                self.sim.apply_base_force(np.zeros(3))
+                self._push_end = -1
+            if tick >= self._next_push:
+                interval, duration = self._push_ticks
+                if self._push_force > 0:
+                    angle = float(self._rng.uniform(-math.pi, math.pi))
+                    self.randomization_detail["push_direction"] = angle
+                    self.randomization_detail["pushes"] = self.randomization_detail.get("pushes", 0) + 1
+                    self.sim.apply_base_force(self._push_force * np.array([math.cos(angle), math.sin(angle), 0.0]))
+                    self._push_end = tick + duration
+                self._next_push = tick + interval
+        self._tick += 1
 
     # -- episode --------------------------------------------------------------------------
     def reset(self, scene: Scene, rng: np.random.Generator) -> Pose2D:
         self.scene = scene
+        self._rng = rng
+        self.randomization_detail = {}
+        self._rebuild_walk()
         self.sim.set_obstacles(scene)
+        self._apply_sim_randomization(rng)  # before the robot is placed (masses, floor tilt, …)
         self.engine.reset()
         standing = self.engine.standing_joint_targets()
         joints = dict(self.robot.walk_ready)
         joints.update(zip(LEG_JOINT_NAMES, standing.tolist()))
-        self.sim.reset_robot(np.array([0.0, 0.0, self.walk.trunk_height]), joints)
+        self.sim.reset_robot(np.array([0.0, 0.0, self.walk_current.trunk_height]), joints)
         self.sim.set_leg_targets(standing)
+        self._delay = deque([standing] * (self._latency + 1), maxlen=self._latency + 1) if self._latency else None
+        self._tick = 0
+        self._push_end = -1
+        if self._push_ticks is not None:
+            self.sim.apply_base_force(np.zeros(3))
+            self._next_push = self._push_ticks[0]  # the first push one interval after the start
         self.sim.advance(self.settle_ticks * self.substeps)  # let the contacts settle
         return self.planar_pose()
 
     def execute(self, double_step: DoubleStep) -> StepResult:
+        if self._sim_dirty:  # per-step physics terms drawn since the last step
+            self._apply_sim_randomization(None)
         trajectory = self.engine.double_step(double_step)
         targets = trajectory.joint_targets
         fell = collided = False
         error = None
         ticks = 0
         check, substeps = self.contact_check_every, self.substeps
-        set_targets, advance = self.sim.set_leg_targets, self.sim.advance
+        randomized = self._latency or self._push_ticks is not None
+        set_targets = self._send_targets if randomized else self.sim.set_leg_targets
+        advance = self.sim.advance
         watch_contacts = bool(self.scene.all_obstacles)
         for ticks in range(1, len(targets) + 1):
             set_targets(targets[ticks - 1])
@@ -169,10 +301,12 @@ class Physics3DBackend(Backend):
         if error is None and not fell:
             error, fell = self._status()
         pose = self.planar_pose() if error is None else Pose2D(math.nan, math.nan, math.nan)
+        info = {"foot_interference": trajectory.interfered, "ik_unreachable_ticks": int((~trajectory.reachable).sum())}
+        if self.randomization_detail:
+            info["randomization_detail"] = dict(self.randomization_detail)
         return StepResult(
             pose=pose, duration_s=ticks * self.control_dt, feet=trajectory.feet, executed=trajectory.executed,
-            fell=fell, collided=collided, sim_error=error,
-            info={"foot_interference": trajectory.interfered, "ik_unreachable_ticks": int((~trajectory.reachable).sum())},
+            fell=fell, collided=collided, sim_error=error, info=info,
         )
 
     # -- truth ----------------------------------------------------------------------------
@@ -203,8 +337,9 @@ class Physics3DBackend(Backend):
     def stop_walking(self) -> float:
         """Run the engine's stop sequence (back to standing); returns its duration [s]."""
         trajectory = self.engine.stop()
+        set_targets = self._send_targets if (self._latency or self._push_ticks is not None) else self.sim.set_leg_targets
         for target in trajectory.joint_targets:
-            self.sim.set_leg_targets(target)
+            set_targets(target)
             self.sim.advance(self.substeps)
         return len(trajectory) * self.control_dt
 
