@@ -140,8 +140,17 @@ def _release(client: int, path: str | None, key: tuple | None, world: dict | Non
             pass
 
 
+#: Physics randomization terms the PyBullet sim applies (see ``apply_physics_randomization``).
+PYBULLET_TERMS = frozenset({
+    "floor_friction", "foot_friction", "link_mass_scale", "torso_com_offset_x", "torso_com_offset_y",
+    "actuator_kp_scale", "torque_limit_scale", "joint_damping_scale", "terrain_slope",
+})
+
+
 class PybulletSim(PhysicsSim):
     """One DIRECT-mode Bullet world holding the robot, the floor and the scene's obstacles."""
+
+    capabilities = PYBULLET_TERMS
 
     def __init__(
         self,
@@ -184,6 +193,12 @@ class PybulletSim(PhysicsSim):
         self.obstacle_ids: list[int] = []
         self._goal_marker = -1
         self._scene: Scene | None = None
+        # Randomization (apply_physics_randomization): scales in force, per-tick external wrench.
+        self._scales = {"kp": 1.0, "damping": 1.0, "torque": 1.0}
+        self._randomized = False
+        self._base_force = np.zeros(3)
+        self._com_offset = np.zeros(3)
+        self._wrench = False  # a push or a COM offset to apply every tick
 
     # -- world ----------------------------------------------------------------------------
     def build(self, robot: RobotSpec, physics_dt: float) -> None:
@@ -335,6 +350,12 @@ class PybulletSim(PhysicsSim):
         self._free: dict[tuple[str, float], list[int]] = {}
         self._pool_key: dict[int, tuple[str, float]] = {}
         self._goal_marker = -1
+        # Nominal masses and inertia diagonals of every robot link (-1: the torso), for randomization.
+        self._nominal_dynamics = {
+            link: (info[0], tuple(info[2]))
+            for link in [-1, *range(p.getNumJoints(self.robot_id, physicsClientId=c))]
+            for info in [p.getDynamicsInfo(self.robot_id, link, physicsClientId=c)]
+        }
 
     def _configure(self) -> None:
         """Settings of this backend's config on a (new or reused) world."""
@@ -353,6 +374,7 @@ class PybulletSim(PhysicsSim):
         self.leg_indices = [self.joint_index[n] for n in LEG_JOINT_NAMES]
         self.leg_forces = [self.spec.joint(n).effort for n in LEG_JOINT_NAMES]
         self.leg_gains = [self._gain[n] for n in LEG_JOINT_NAMES]
+        self._scales = {"kp": 1.0, "damping": 1.0, "torque": 1.0}
         self.leg_vgains = [self.velocity_gain] * len(LEG_JOINT_NAMES)
         self.other_names = [n for n in self.joint_names if n not in LEG_JOINT_NAMES]
 
@@ -413,8 +435,8 @@ class PybulletSim(PhysicsSim):
             p.setJointMotorControlArray(
                 body, others, p.POSITION_CONTROL,
                 targetPositions=[float(joint_positions.get(n, 0.0)) for n in self.other_names],
-                forces=[self.spec.joint(n).effort for n in self.other_names],
-                positionGains=[self._gain[n] for n in self.other_names],
+                forces=[self.spec.joint(n).effort * self._scales["torque"] for n in self.other_names],
+                positionGains=[self._motor_gain(n) for n in self.other_names],
                 velocityGains=[self.velocity_gain] * len(others), physicsClientId=c)
 
     def set_leg_targets(self, targets: np.ndarray) -> None:
@@ -425,8 +447,93 @@ class PybulletSim(PhysicsSim):
 
     def advance(self, n_steps: int) -> None:
         c = self.client
+        if self._wrench:
+            for _ in range(n_steps):
+                self._apply_wrench()
+                p.stepSimulation(physicsClientId=c)
+            return
         for _ in range(n_steps):
             p.stepSimulation(physicsClientId=c)
+
+    # -- randomization --------------------------------------------------------------------
+    def _motor_gain(self, name: str) -> float:
+        """Bullet position gain of a joint: the module docstring's mapping with the randomized
+        kp and damping (kd) scales, kp·dt/kd, capped at 1."""
+        if self._scales["kp"] == 1.0 and self._scales["damping"] == 1.0:
+            return self._gain[name]
+        j = self.spec.joint(name)
+        raw = self.position_gain_scale * j.servo.kp * self.physics_dt / max(j.servo.damping, 1e-6)
+        return min(1.0, raw * self._scales["kp"] / self._scales["damping"])
+
+    def apply_physics_randomization(self, values: dict[str, float]) -> None:
+        """Nominal × ``values`` (absent terms: nominal).
+
+        * friction: Bullet multiplies the two bodies' lateral friction, so the floor's and the
+          feet's coefficients are scaled separately (contact: nominal · floor · foot).
+        * ``link_mass_scale``: mass and inertia diagonal of every link, one factor.
+        * ``actuator_kp_scale`` / ``joint_damping_scale``: the servo's kp and kd in the motor
+          mapping (positionGain ∝ kp / kd, capped at 1) — Bullet's joint damping is off (see
+          ``_build_world``), the servo's damping lives in that mapping.
+        * ``torque_limit_scale``: the motors' max force.
+        * ``torso_com_offset_x/_y``: Bullet cannot move a loaded link's inertial frame, so the
+          offset is emulated by its gravity moment, the torque (R d) × m g on the torso every
+          tick — exact for the moment about any support point, but the torso's inertial frame
+          (and so its dynamics in flight) stays nominal.
+        * ``terrain_slope``: the floor plane is tilted about the origin toward
+          ``terrain_slope_direction``.
+        """
+        unknown = sorted(set(values) - PYBULLET_TERMS - {"terrain_slope_direction"})
+        if unknown:
+            raise ValueError(f"PybulletSim cannot apply randomization terms {unknown}")
+        c, body = self.client, self.robot_id
+
+        def scale(name):
+            value = float(values.get(name, 1.0))
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"randomization {name} must be > 0, got {value}")
+            return value
+
+        mass = scale("link_mass_scale")
+        for link, (m, inertia) in self._nominal_dynamics.items():
+            p.changeDynamics(body, link, mass=m * mass, localInertiaDiagonal=[v * mass for v in inertia],
+                             physicsClientId=c)
+        p.changeDynamics(self.floor_id, -1, lateralFriction=self.lateral_friction * scale("floor_friction"),
+                         physicsClientId=c)
+        for foot in ("l_foot", "r_foot"):
+            if foot in self.link_index:
+                p.changeDynamics(body, self.link_index[foot],
+                                 lateralFriction=self.lateral_friction * scale("foot_friction"), physicsClientId=c)
+        self._scales = {"kp": scale("actuator_kp_scale"), "damping": scale("joint_damping_scale"),
+                        "torque": scale("torque_limit_scale")}
+        self.leg_gains = [self._motor_gain(n) for n in LEG_JOINT_NAMES]
+        self.leg_forces = [self.spec.joint(n).effort * self._scales["torque"] for n in LEG_JOINT_NAMES]
+        self._com_offset = np.array([values.get("torso_com_offset_x", 0.0), values.get("torso_com_offset_y", 0.0), 0.0])
+        slope = float(values.get("terrain_slope", 0.0))
+        if not (math.isfinite(slope) and abs(slope) < math.pi / 4):
+            raise ValueError(f"randomization terrain_slope must be within ±pi/4 rad, got {slope}")
+        direction = float(values.get("terrain_slope_direction", 0.0))
+        axis = (-math.sin(direction), math.cos(direction), 0.0)  # the plane descends toward the direction
+        half = 0.5 * slope
+        p.resetBasePositionAndOrientation(self.floor_id, [0, 0, 0], [*(math.sin(half) * a for a in axis), math.cos(half)],
+                                          physicsClientId=c)
+        self._randomized = bool(values)
+        self._wrench = bool(self._base_force.any() or self._com_offset.any())
+
+    def apply_base_force(self, force_xyz: np.ndarray) -> None:
+        self._base_force = np.asarray(force_xyz, dtype=float).copy()
+        self._wrench = bool(self._base_force.any() or self._com_offset.any())
+
+    def _apply_wrench(self) -> None:
+        """Bullet clears external forces after every step: push and COM-offset torque, per tick."""
+        c, body = self.client, self.robot_id
+        com, orn = p.getBasePositionAndOrientation(body, physicsClientId=c)
+        if self._base_force.any():
+            p.applyExternalForce(body, -1, self._base_force.tolist(), com, p.WORLD_FRAME, physicsClientId=c)
+        if self._com_offset.any():
+            rot = np.array(p.getMatrixFromQuaternion(orn)).reshape(3, 3) @ self._com_rot.T  # link frame
+            mass = p.getDynamicsInfo(body, -1, physicsClientId=c)[0]
+            torque = np.cross(rot @ self._com_offset, [0.0, 0.0, -9.81 * mass])
+            p.applyExternalTorque(body, -1, torque.tolist(), p.WORLD_FRAME, physicsClientId=c)
 
     def base_pose(self) -> tuple[np.ndarray, np.ndarray]:
         pos, orn = p.getBasePositionAndOrientation(self.robot_id, physicsClientId=self.client)
@@ -492,7 +599,7 @@ class PybulletSim(PhysicsSim):
 
     _WORLD_ATTRS = ("client", "floor_id", "robot_id", "joint_index", "link_index", "joint_names", "_filters",
                     "_com_pos", "_com_orn", "_com_rot", "obstacle_ids", "_free", "_pool_key", "_goal_marker",
-                    "_goal_arrow")
+                    "_goal_arrow", "_nominal_dynamics")
 
     def close(self) -> None:
         """Park the world for reuse (see ``_IDLE_WORLDS``) or disconnect; remove the URDF file."""
@@ -503,6 +610,8 @@ class PybulletSim(PhysicsSim):
         try:
             # A world that blew up is not reused (NaN may linger in Bullet's caches).
             if self.robot_id >= 0 and p.isConnected(self.client) and self._healthy():
+                if self._randomized:  # a parked world is nominal for its next owner
+                    self.apply_physics_randomization({})
                 if self._scene is not None:
                     self.set_obstacles(type(self._scene)(goal=self._scene.goal))  # park the obstacles
                 world = {k: getattr(self, k) for k in self._WORLD_ATTRS if hasattr(self, k)}
@@ -516,7 +625,6 @@ class PybulletBackend(Physics3DBackend):
     """The shared 3D driver on PyBullet.  Options: see ``conf/backend/pybullet.yaml``."""
 
     name = "pybullet"
-    capabilities = frozenset()
 
     _SIM_OPTIONS = ("self_collision", "rigid_upper_body", "lateral_friction", "spinning_friction", "rolling_friction", "position_gain_scale",
                     "velocity_gain", "solver_iterations", "obstacle_height", "max_base_speed", "camera_distance",
