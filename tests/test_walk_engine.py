@@ -351,3 +351,20 @@ def test_walkplot_cli_writes_a_png(tmp_path):
         main(["steps=0,0,0,0,0,0"])  # out= is required
     with pytest.raises(SystemExit):
         main([f"out={out}", "steps=nan,0,0,0,0,0"])
+
+
+def test_swing_path_goes_around_the_support_foot():
+    """A turned foot stepping inward after an inward, turned step: both put-down poses are clear
+    of the other foot, but the straight (x, y, yaw) path between them sweeps the turning plate
+    over the support foot.  The engine detours outward so no tick of the swing overlaps."""
+    engine = make_engine()
+    geometry = engine.geometry
+    touching = FootstepGeometry(geometry.limits, geometry.foot_length, geometry.foot_width, geometry.foot_distance,
+                                min_foot_gap=0.0)
+    overlaps = 0
+    for action in ([-0.93, 0.79, 0.32, 0.8, -0.77, 0.97], [0.07, 0.32, -0.24, 0.47, 0.32, 0.68]):
+        trajectory = engine.double_step(DoubleStep.from_action(action, LIMITS))
+        for left, right in zip(trajectory.left_foot, trajectory.right_foot):
+            rel = Pose2D(*left[[0, 1, 5]]).relative(Pose2D(*right[[0, 1, 5]]))
+            overlaps += touching.feet_interfere(rel.x, rel.y, rel.theta)
+    assert overlaps == 0

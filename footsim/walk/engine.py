@@ -66,6 +66,10 @@ X, Y, Z, ROLL, PITCH, YAW = range(6)
 # rolls, so those channels are constant zero and are not evaluated.
 _FOOT_CHANNELS = [X, Y, Z, YAW]
 _TRUNK_CHANNELS = [X, Y, Z, PITCH, YAW]
+# Swing-path clearance: interior samples of the planar path checked against the support foot,
+# and the largest outward detour [m] the flying foot may take around it.
+_SWEEP_SAMPLES = np.linspace(0.0, 1.0, 25)[1:-1]
+_MAX_DETOUR = 0.1
 
 
 @dataclass(frozen=True)
@@ -496,7 +500,53 @@ class QuinticWalk:
         z += [(apex, p.foot_rise), (put_down, 0.0)]
         if settled:
             z.append((half, 0.0))
-        return [planar(last.x, landing.x), planar(last.y, landing.y), z, planar(last.theta, landing.theta)]
+        y = planar(last.y, landing.y)
+        if double_support < apex < put_down:
+            y = self._swing_detour(y, plan, double_support, put_down, apex)
+        return [planar(last.x, landing.x), y, z, planar(last.theta, landing.theta)]
+
+    def _swing_detour(self, y_knots: list, plan: _HalfStep, start: float, end: float, apex: float) -> list:
+        """Route the flying foot around the support foot when its straight path would cross it.
+
+        ``FootstepGeometry.landing`` keeps the put-down pose clear of the support foot, but
+        between two clear poses the interpolated (x, y, yaw) path can still sweep the turning
+        plate over the support foot (e.g. a foot stepping inward and turning after an inward,
+        turned step).  In 3D that kicks the support foot.  If any sampled pose of the straight
+        path comes closer than the geometry's gap, a y knot at the apex pushes the foot outward
+        (on its own side) far enough that every sample clears, up to ``_MAX_DETOUR``.
+        """
+        last, landing = plan.last, plan.landing
+        sign = plan.support.other.sign  # the flying foot's side in the support frame
+        u = _SWEEP_SAMPLES
+        # All planar channels share one rest-to-rest quintic profile between start and end.
+        sigma = u * u * u * (10.0 - 15.0 * u + 6.0 * u * u)
+        xs = last.x + sigma * (landing.x - last.x)
+        thetas = last.theta + sigma * (landing.theta - last.theta)
+        bands = [self.geometry._band(float(x), float(th)) for x, th in zip(xs, thetas)]
+        if not any(b is not None for b in bands):
+            return y_knots
+        edge = np.array([np.nan if b is None else (b[1] if sign > 0 else b[0]) for b in bands])
+        blocked = ~np.isnan(edge)
+        times = start + u * (end - start)
+
+        def deficit(knots) -> float:
+            ys = PiecewiseQuintic([knots]).positions(times[None, :])[0]
+            return float(np.max(sign * (edge[blocked] - ys[blocked]), initial=0.0))
+
+        if deficit(y_knots) <= 0.0:
+            return y_knots
+        span = end - start
+        tau = (apex - start) / span
+        line = last.y + (landing.y - last.y) * tau**3 * (10.0 - 15.0 * tau + 6.0 * tau * tau)
+        line_v = (landing.y - last.y) * 30.0 * tau**2 * (1.0 - tau) ** 2 / span
+        detour, knots = 0.0, y_knots
+        for _ in range(6):  # the bump is smaller away from the apex: grow it until every sample clears
+            missing = deficit(knots)
+            if missing <= 1e-4 or detour >= _MAX_DETOUR:
+                break
+            detour = min(_MAX_DETOUR, detour + 1.5 * missing + 0.005)
+            knots = sorted(y_knots + [(apex, line + sign * detour, line_v)], key=lambda k: k[0])
+        return knots
 
     # --- evaluation ----------------------------------------------------------------------
 
