@@ -29,7 +29,7 @@ TERMS = {
     # 3D physics
     "floor_friction": "scale of the floor's sliding friction",
     "foot_friction": "scale of the feet's sliding friction",
-    "link_mass_scale": "scale of every link mass (one factor per link)",
+    "link_mass_scale": "scale of every link mass and inertia (one factor for all links)",
     "torso_com_offset_x": "torso centre-of-mass shift along x [m]",
     "torso_com_offset_y": "torso centre-of-mass shift along y [m]",
     "actuator_kp_scale": "scale of the position servos' gain",

@@ -64,6 +64,7 @@ class MujocoNominal:
     forcerange: np.ndarray
     damping: np.ndarray
     floor_quat: np.ndarray
+    floor_sameframe: int
     mass_edited: bool = False
     scratch: object = None  # an mjData for mj_setConst
 
@@ -90,7 +91,7 @@ def capture(model, torso: int, foot_bodies, floor_geom: int, actuators, dofs) ->
         geom_friction=model.geom_friction[rows].copy(), geom_priority=model.geom_priority[rows].copy(),
         gain=model.actuator_gainprm[actuators, 0].copy(), bias=model.actuator_biasprm[actuators, 1].copy(),
         forcerange=model.actuator_forcerange[actuators].copy(), damping=model.dof_damping[dofs].copy(),
-        floor_quat=model.geom_quat[floor_geom].copy(),
+        floor_quat=model.geom_quat[floor_geom].copy(), floor_sameframe=int(model.geom_sameframe[floor_geom]),
     )
 
 
@@ -159,8 +160,10 @@ def apply(model, nominal: MujocoNominal, values: dict[str, float], mujoco) -> No
         raise ValueError(f"randomization terrain_slope must be within ±pi/4 rad, got {slope}")
     if slope:
         m.geom_quat[n.floor_geom] = slope_quat(slope, float(values.get("terrain_slope_direction", 0.0)))
+        m.geom_sameframe[n.floor_geom] = 0  # else mj_kinematics copies the world body's frame
     else:
         m.geom_quat[n.floor_geom] = n.floor_quat
+        m.geom_sameframe[n.floor_geom] = n.floor_sameframe
 
 
 def total_robot_mass(model, nominal: MujocoNominal) -> float:
