@@ -148,6 +148,26 @@ def _rotation_cm(roll: np.ndarray, pitch: np.ndarray, yaw: np.ndarray) -> np.nda
     )
 
 
+def _overlap_bands(x: np.ndarray, theta: np.ndarray, half_l: float, half_w: float) -> tuple[np.ndarray, np.ndarray]:
+    """Vectorised ``footsteps._overlap_band_y``: the y interval where a foot at (x, y, theta)
+    overlaps an identical foot at the origin, per sample; NaN where no y overlaps."""
+    c, s = np.cos(theta), np.sin(theta)
+    lo = np.full(x.shape, -np.inf)
+    hi = np.full(x.shape, np.inf)
+    separated = np.zeros(x.shape, dtype=bool)
+    for nx, ny in ((np.ones_like(c), np.zeros_like(c)), (np.zeros_like(c), np.ones_like(c)), (c, s), (-s, c)):
+        reach = (half_l * np.abs(nx) + half_w * np.abs(ny)
+                 + half_l * np.abs(nx * c + ny * s) + half_w * np.abs(-nx * s + ny * c))
+        flat = np.abs(ny) < 1e-12
+        separated |= flat & (np.abs(nx * x) > reach)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            a, b = (-reach - nx * x) / ny, (reach - nx * x) / ny
+        lo = np.where(flat, lo, np.maximum(lo, np.minimum(a, b)))
+        hi = np.where(flat, hi, np.minimum(hi, np.maximum(a, b)))
+    separated |= lo > hi
+    return np.where(separated, np.nan, lo), np.where(separated, np.nan, hi)
+
+
 def _constant_knots(value: float, duration: float) -> list:
     return [(0.0, value), (duration, value)]
 
@@ -522,11 +542,12 @@ class QuinticWalk:
         sigma = u * u * u * (10.0 - 15.0 * u + 6.0 * u * u)
         xs = last.x + sigma * (landing.x - last.x)
         thetas = last.theta + sigma * (landing.theta - last.theta)
-        bands = [self.geometry._band(float(x), float(th)) for x, th in zip(xs, thetas)]
-        if not any(b is not None for b in bands):
-            return y_knots
-        edge = np.array([np.nan if b is None else (b[1] if sign > 0 else b[0]) for b in bands])
+        g = self.geometry
+        lo, hi = _overlap_bands(xs, thetas, 0.5 * (g.foot_length + g.min_foot_gap), 0.5 * (g.foot_width + g.min_foot_gap))
+        edge = hi if sign > 0 else lo
         blocked = ~np.isnan(edge)
+        if not blocked.any():
+            return y_knots
         times = start + u * (end - start)
 
         def deficit(knots) -> float:
