@@ -537,13 +537,19 @@ class QuinticWalk:
         """
         last, landing = plan.last, plan.landing
         sign = plan.support.other.sign  # the flying foot's side in the support frame
+        g = self.geometry
+        # Clear by construction when the flying foot stays laterally farther from the support
+        # foot than any overlap can reach (half its width plus the flying plate's half diagonal);
+        # y moves monotonically between the two ends, so the ends decide.
+        half_l, half_w = 0.5 * (g.foot_length + g.min_foot_gap), 0.5 * (g.foot_width + g.min_foot_gap)
+        if min(sign * last.y, sign * landing.y) > half_w + math.hypot(half_l, half_w):
+            return y_knots
         u = _SWEEP_SAMPLES
         # All planar channels share one rest-to-rest quintic profile between start and end.
         sigma = u * u * u * (10.0 - 15.0 * u + 6.0 * u * u)
         xs = last.x + sigma * (landing.x - last.x)
         thetas = last.theta + sigma * (landing.theta - last.theta)
-        g = self.geometry
-        lo, hi = _overlap_bands(xs, thetas, 0.5 * (g.foot_length + g.min_foot_gap), 0.5 * (g.foot_width + g.min_foot_gap))
+        lo, hi = _overlap_bands(xs, thetas, half_l, half_w)
         edge = hi if sign > 0 else lo
         blocked = ~np.isnan(edge)
         if not blocked.any():
