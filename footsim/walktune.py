@@ -155,7 +155,7 @@ def evaluate_walk(backend, tune) -> dict:
 
 def format_result(result: dict) -> str:
     lines = [f"objective {result['objective']:.4f} = v+x {result['v_forward']:.3f} + v-x {result['v_backward']:.3f}"
-             f" + 2·v_y {result['v_lateral']:.3f} + 0.2·v_yaw {result['v_turn']:.3f}"
+             f" + 2 × v_y {result['v_lateral']:.3f} + 0.2 × v_yaw {result['v_turn']:.3f}"
              f"   (stands: {result['stands']}, {result['cpu_s']:.1f} s CPU)"]
     for name, d in result["directions"].items():
         ladder = "  ".join(f"{r['level']:.2f}:" + ("FELL" if r["fell"] else f"{r['speed']:+.3f}") for r in d["levels"])
