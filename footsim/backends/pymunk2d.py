@@ -32,9 +32,17 @@ class Pymunk2DBackend(Backend):
     capabilities = frozenset({"footstep_noise_x", "footstep_noise_y", "footstep_noise_theta", "walk_freq_scale"})
     collision_ends_episode = True
 
-    def __init__(self, robot: RobotSpec, walk: WalkParams, collision_ends_episode: bool = True, **unused):
+    def __init__(self, robot: RobotSpec, walk: WalkParams, collision_ends_episode: bool = True,
+                 execution_model: str | None = None, execution_noise: bool = True, execution_falls: bool = False,
+                 **unused):
         if unused:
             raise ValueError(f"backend pymunk: unknown option(s) {sorted(unused)}")
+        self.execution_model = None
+        if execution_model:  # commanded -> executed displacement fitted on a 3D backend (footsim-calibrate)
+            from footsim.calibrate import ExecutionModel
+
+            self.execution_model = ExecutionModel.load(execution_model, noise=bool(execution_noise))
+        self.execution_falls = bool(execution_falls)
         self.robot = robot
         self.walk = walk
         self.collision_ends_episode = bool(collision_ends_episode)
@@ -104,6 +112,9 @@ class Pymunk2DBackend(Backend):
                 self._swing_collides(before, after_first, Side.RIGHT)
                 or self._swing_collides(after_first, after_second, Side.LEFT)
             )
+        fell = False
+        if self.execution_model is not None:
+            after_first, after_second, fell = self._apply_execution_model(before, after_first, after_second, double_step)
         self.feet = after_second
         self.history += [(Side.RIGHT, after_first.right), (Side.LEFT, after_second.left)]
         self.nav_history.append(after_second.nav_pose)
@@ -112,9 +123,31 @@ class Pymunk2DBackend(Backend):
             duration_s=self._duration,
             feet=after_second,
             executed=executed,
+            fell=fell,
             collided=collided,
             info={"foot_interference": n_interfered},
         )
+
+    def _apply_execution_model(self, before: FeetState, after_first: FeetState, after_second: FeetState,
+                               double_step: DoubleStep) -> tuple[FeetState, FeetState, bool]:
+        """Move the feet so the navigation frame makes the model's displacement instead of the
+        geometry's: both feet shift rigidly with the navigation frame (half the correction at the
+        half step); the residual noise and the fall draw come from the episode rng."""
+        model = self.execution_model
+        start, predicted = before.nav_pose, after_second.nav_pose
+        dx, dy, dtheta = model.predict(start.relative(predicted), self._rng)
+        correction = predicted.relative(start.compose(Pose2D(float(dx), float(dy), float(dtheta))))
+
+        def moved(feet: FeetState, fraction: float) -> FeetState:
+            nav = feet.nav_pose
+            target = nav.compose(Pose2D(fraction * correction.x, fraction * correction.y, fraction * correction.theta))
+            return FeetState(target.compose(nav.relative(feet.left)), target.compose(nav.relative(feet.right)))
+
+        fell = False
+        if self.execution_falls and model.fall is not None:
+            action = double_step.as_array() / np.tile(self.robot.step_limits.as_array(), 2)
+            fell = bool(self._rng.random() < model.fall_probability(action))
+        return moved(after_first, 0.5), moved(after_second, 1.0), fell
 
     # -- collisions -----------------------------------------------------------------------
     def _swing_collides(self, start: FeetState, end: FeetState, flying: Side) -> bool:
