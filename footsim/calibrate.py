@@ -1,8 +1,8 @@
 """Calibrated 2D: ``footsim-calibrate backend=mujoco [n_steps=600] [seed=0] [scale=0.7] out=FILE.json``.
 
-Rolls out random double steps (uniform in ``[-scale, scale]`` per action value; with probability
-``repeat`` the previous action again, so steady walking is sampled too) on a 3D backend from an
-empty scene, resetting after a fall.  For every double step it records
+Rolls out random double steps (with probability ``repeat`` the previous action again, so steady
+walking dominates as in a policy's gait) on a 3D backend from an empty scene, resetting after a
+fall.  For every double step it records
 
 * the displacement the planar footstep geometry predicts (what the 2D backend executes): the
   navigation frame (mean of the two feet) after the step in the frame before it, from the walk
@@ -11,9 +11,9 @@ empty scene, resetting after a fall.  For every double step it records
   the frame of the base before it (``StepResult.pose``);
 * whether it fell.
 
-and fits the **execution model**: per output (dx, dy, dθ) a linear regression on the predicted
-displacement and its absolute values (``dx, dy, dtheta, abs_dx, abs_dy, abs_dtheta``) with
-intercept and residual σ, and the fall probability per double step as a logistic regression on
+(uniform in ``[-1, 1]`` times a magnitude drawn in ``[0.25, 1] × scale`` per new action) and fits the **execution model**: per output (dx, dy, dθ) a linear regression on the predicted
+displacement (``features=dx,dy,dtheta`` by default; ``abs_dx, abs_dy, abs_dtheta`` can be added)
+with intercept and residual σ, and the fall probability per double step as a logistic regression on
 the absolute action values.  ``backend=pymunk backend.execution_model=FILE`` makes the 2D
 backend execute through it (:class:`ExecutionModel`, ``footsim.backends.pymunk2d``).
 
@@ -35,6 +35,7 @@ FORMAT = "footsim-execution-model"
 VERSION = 1
 FEATURES = ("dx", "dy", "dtheta", "abs_dx", "abs_dy", "abs_dtheta")
 OUTPUTS = ("dx", "dy", "dtheta")
+DEFAULT_FEATURES = ("dx", "dy", "dtheta")  # the abs_* terms fit random data better but extrapolate worse
 FALL_FEATURES = tuple(f"abs_a{i}" for i in range(6))
 
 
@@ -127,8 +128,14 @@ class ExecutionModel:
         return 1.0 / (1.0 + math.exp(-z)) if z > -700 else 0.0
 
 
+def _draw(rng: np.random.Generator, scale: float) -> np.ndarray:
+    """A random action: uniform in [-1, 1]^6 times a magnitude drawn in [0.25, 1] x ``scale``
+    (small and large steps both well represented)."""
+    return rng.uniform(-1.0, 1.0, 6) * rng.uniform(0.25, 1.0) * scale
+
+
 # -- data ---------------------------------------------------------------------------------------
-def collect(backend, n_steps: int, seed: int = 0, scale: float = 0.7, repeat: float = 0.5,
+def collect(backend, n_steps: int, seed: int = 0, scale: float = 1.0, repeat: float = 0.9,
             progress: bool = True) -> dict[str, np.ndarray]:
     """Random double steps on ``backend``; arrays ``action (n,6), predicted (n,3), executed (n,3),
     fell (n,)`` (``executed`` is NaN where the robot fell or the sim failed)."""
@@ -154,9 +161,9 @@ def collect(backend, n_steps: int, seed: int = 0, scale: float = 0.7, repeat: fl
             pose = backend.reset(scene, np.random.default_rng(seed + 1000 + resets))
             feet = geometry.initial_feet()
             resets += 1
-            action = rng.uniform(-scale, scale, 6)
+            action = _draw(rng, scale)
         elif rng.random() >= repeat:
-            action = rng.uniform(-scale, scale, 6)
+            action = _draw(rng, scale)
         result = backend.execute(DoubleStep.from_action(action, robot.step_limits))
         after = result.feet if result.feet is not None else geometry.execute(
             feet, DoubleStep.from_action(action, robot.step_limits))[1]
@@ -208,12 +215,15 @@ def fit_logistic(x: np.ndarray, y: np.ndarray, l2: float = 1e-2, iterations: int
     return w[:p], float(w[p])
 
 
-def fit(data: dict[str, np.ndarray], meta: dict | None = None) -> dict:
-    """The execution-model JSON payload from collected data."""
+def fit(data: dict[str, np.ndarray], meta: dict | None = None, names=DEFAULT_FEATURES) -> dict:
+    """The execution-model JSON payload from collected data (``names``: the regression features)."""
+    names = tuple(names)
+    if not names or set(names) - set(FEATURES):
+        raise ValueError(f"features must be a non-empty subset of {list(FEATURES)}, got {list(names)}")
     ok = ~data["fell"].astype(bool)
-    if ok.sum() < len(FEATURES) + 2:
+    if ok.sum() < len(names) + 2:
         raise ValueError(f"too few double steps without a fall to fit ({int(ok.sum())}); raise n_steps or lower scale")
-    x = features(data["predicted"][ok])
+    x = features(data["predicted"][ok], names)
     coef, intercept, std, r2 = fit_linear(x, data["executed"][ok])
     fell = data["fell"].astype(float)
     fall = None
@@ -224,7 +234,7 @@ def fit(data: dict[str, np.ndarray], meta: dict | None = None) -> dict:
     raw = data["executed"][ok] - data["predicted"][ok]
     return {
         "format": FORMAT, "version": VERSION,
-        "features": list(FEATURES), "outputs": list(OUTPUTS),
+        "features": list(names), "outputs": list(OUTPUTS),
         "coef": coef.tolist(), "intercept": intercept.tolist(), "residual_std": std.tolist(), "r2": r2.tolist(),
         "fall": fall,
         "n_samples": int(len(fell)), "n_falls": int(fell.sum()),
@@ -260,24 +270,27 @@ def consistency(model_path: str, backend3d: str = "mujoco", seed: int = 0) -> tu
         backend = fconf.build_backend({"name": "pymunk", **options}, robot, walk)
         try:
             for cut in (False, True):
-                dp, dy = [], []
+                dp, dy, dyaw = [], [], []
                 for s in sequences:
                     seq = s
                     if cut and ref[s.name]["steps"] < len(s.actions):
                         seq = Sequence(s.name, s.actions[: ref[s.name]["steps"]], s.measure, s.stop)
-                    a, b = run_sequence(backend, seq, seed=seed)["pose"], ref[s.name]["pose"]
+                    ra = run_sequence(backend, seq, seed=seed)
+                    a, b = ra["pose"], ref[s.name]["pose"]
+                    dyaw.append(abs(ra["yaw"] - ref[s.name]["yaw"]))
                     dp.append(math.hypot(a.x - b.x, a.y - b.y))
                     dy.append(abs(wrap_angle(a.theta - b.theta)))
                 rows.append({"pair": f"{label} – {backend3d}", "sequences": "cut at 3D fall" if cut else "full",
                              "pos_mean": float(np.mean(dp)), "pos_max": float(np.max(dp)),
-                             "yaw_mean": float(np.mean(dy)), "yaw_max": float(np.max(dy))})
+                             "yaw_mean": float(np.mean(dy)), "yaw_max": float(np.max(dy)),
+                             "turn_mean": float(np.mean(dyaw)), "turn_max": float(np.max(dyaw))})
         finally:
             backend.close()
-    lines = ["| pair | sequences | position diff mean [m] | max [m] | yaw diff mean [rad] | max [rad] |",
-             "|---|---|---|---|---|---|"]
+    lines = ["| pair | sequences | position diff mean [m] | max [m] | yaw diff mean [rad] | max [rad] "
+             "| total turn diff mean [rad] | max [rad] |", "|---|---|---|---|---|---|---|---|"]
     for r in sorted(rows, key=lambda r: r["sequences"] != "full"):
         lines.append(f"| {r['pair']} | {r['sequences']} | {r['pos_mean']:.3f} | {r['pos_max']:.3f} | "
-                     f"{r['yaw_mean']:.3f} | {r['yaw_max']:.3f} |")
+                     f"{r['yaw_mean']:.3f} | {r['yaw_max']:.3f} | {r['turn_mean']:.3f} | {r['turn_max']:.3f} |")
     falls = [f"{s.name} ({ref[s.name]['steps']}/{len(s.actions)})" for s in sequences
              if ref[s.name]["fell"] or ref[s.name]["sim_error"]]
     lines += ["", f"{backend3d} fell in: {', '.join(falls) if falls else 'none'}"]
@@ -285,7 +298,8 @@ def consistency(model_path: str, backend3d: str = "mujoco", seed: int = 0) -> tu
 
 
 # -- command ------------------------------------------------------------------------------------
-USAGE = ("usage: footsim-calibrate backend=mujoco [n_steps=600] [seed=0] [scale=0.7] [repeat=0.5] out=FILE.json\n"
+USAGE = ("usage: footsim-calibrate backend=mujoco [n_steps=800] [seed=0] [scale=1.0] [repeat=0.9] "
+         "[features=dx,dy,dtheta] out=FILE.json\n"
          "       footsim-calibrate compare=FILE.json [backend=mujoco] [out=FILE.md]")
 
 
@@ -294,8 +308,8 @@ def main(argv: list[str] | None = None) -> None:
     from footsim.tasks.scenes import atomic_write_text, parse_kv_args
 
     args = parse_kv_args(sys.argv[1:] if argv is None else argv,
-                         {"backend": "mujoco", "n_steps": "600", "seed": "0", "scale": "0.7", "repeat": "0.5",
-                          "out": "", "compare": ""}, "footsim-calibrate")
+                         {"backend": "mujoco", "n_steps": "800", "seed": "0", "scale": "1.0", "repeat": "0.9",
+                          "features": ",".join(DEFAULT_FEATURES), "out": "", "compare": ""}, "footsim-calibrate")
     if args["compare"]:
         _, table = consistency(args["compare"], args["backend"], int(args["seed"]))
         print(table)
@@ -320,12 +334,13 @@ def main(argv: list[str] | None = None) -> None:
         data = collect(backend, n_steps, seed, scale, repeat)
     finally:
         backend.close()
+    names = [f for f in args["features"].split(",") if f]
     model = fit(data, meta={"backend": args["backend"], "n_steps": n_steps, "seed": seed, "scale": scale,
-                            "repeat": repeat})
+                            "repeat": repeat}, names=names)
     write_json(args["out"], model)
     print(f"{model['n_samples']} double steps, {model['n_falls']} falls on {args['backend']}")
     for k, name in enumerate(OUTPUTS):
-        terms = " ".join(f"{c:+.3f}·{f}" for c, f in zip(model["coef"][k], FEATURES))
+        terms = " ".join(f"{c:+.3f}·{f}" for c, f in zip(model["coef"][k], names))
         print(f"  {name} = {terms} {model['intercept'][k]:+.4f}   σ={model['residual_std'][k]:.4f}  "
               f"R²={model['r2'][k]:.3f}  (uncorrected 2D RMSE {model['uncorrected_rmse'][k]:.4f})")
     print(f"execution model written to {args['out']}")

@@ -29,7 +29,8 @@ def test_fit_recovers_a_known_linear_model_and_fall_logistic():
     p = 1 / (1 + np.exp(-(np.abs(action) @ w_true + b_true)))
     fell = rng.random(n) < p
     executed[fell] = np.nan
-    model = calibrate.fit({"action": action, "predicted": predicted, "executed": executed, "fell": fell.astype(float)})
+    model = calibrate.fit({"action": action, "predicted": predicted, "executed": executed, "fell": fell.astype(float)},
+                          names=FEATURES)
     np.testing.assert_allclose(model["coef"], coef, atol=0.02)
     np.testing.assert_allclose(model["intercept"], intercept, atol=0.01)
     np.testing.assert_allclose(model["residual_std"], sigma, rtol=0.1)
