@@ -252,6 +252,7 @@ def consistency(model_path: str, backend3d: str = "mujoco", seed: int = 0) -> tu
     from footsim.geometry import wrap_angle
     from footsim.walkcheck import Sequence, make_backend, run_sequence, standard_sequences
 
+    ExecutionModel.load(model_path)  # a bad file fails before the 3D runs
     sequences = standard_sequences()
     ref_backend = make_backend(backend3d)
     try:
