@@ -6,7 +6,7 @@ Measures the Hamburg Bit-Bots' walk-tuning objective (shared/FACTS.md, "Quintic 
 
 for the composed ``walk`` group on a 3D backend and returns it (higher is better), so that a
 Hydra sweep with footsim's Optuna sweeper tunes the walk (``footsim-walktune -m
-+hpo=walk_pybullet``, see ``conf/hpo/walk_pybullet.yaml`` and docs/SWEEPS.md).
++hpo=walk_pybullet``, see ``conf/hpo/walk.yaml`` and docs/RESULTS_walktune.md).
 
 Each direction (forward, backward, lateral, turn; with ``tune.symmetric`` lateral and turn are
 measured to both sides and averaged) is one episode from standing: the commanded speed is
@@ -193,10 +193,11 @@ def run(cfg, run_dir: Path | None = None) -> dict:
     return result
 
 
-def enqueue_walk(storage: str, study_name: str, walk: str | dict, keys=None) -> dict:
+def enqueue_walk(storage: str, study_name: str, walk: str | dict, keys=None, fixed=()) -> dict:
     """Put a walk preset (name, e.g. ``"pybullet"``, or a mapping) into an Optuna study as its next
     trial, so a sweep starts from the current tuned values (``study.enqueue_trial``).  Only the
-    searched ``keys`` (``walk.*`` params of the preset) are enqueued; creates the study
+    searched ``keys`` (default: the ``walk.*`` params of ``conf/hpo/walk.yaml`` except those in
+    ``fixed``, e.g. ``("freq",)`` when the sweep fixes ``walk.freq``) are enqueued; creates the study
     (direction maximize) when missing.  Returns the enqueued params.
 
         python -c "from footsim.walktune import enqueue_walk; enqueue_walk(
@@ -211,7 +212,7 @@ def enqueue_walk(storage: str, study_name: str, walk: str | dict, keys=None) -> 
         from omegaconf import OmegaConf
 
         params = OmegaConf.load(fconf.conf_dir() / "hpo" / "walk.yaml").hydra.sweeper.params
-        keys = [k[len("walk."):] for k in params]
+        keys = [k[len("walk."):] for k in params if k[len("walk."):] not in fixed]
     if storage.startswith("sqlite:///"):
         Path(storage[len("sqlite:///"):]).expanduser().parent.mkdir(parents=True, exist_ok=True)
     study = optuna.create_study(study_name=study_name, storage=storage, direction="maximize", load_if_exists=True)
