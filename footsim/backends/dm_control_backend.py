@@ -57,12 +57,11 @@ from footsim.backends.mujoco_backend import (
     obstacle_geometry,
 )
 from footsim.backends.mujoco_randomization import MujocoRandomization
-from footsim.backends.physics3d import DEFAULT_FALL_THRESHOLD, Physics3DBackend, PhysicsSim, quat_to_matrix
+from footsim.backends.physics3d import Physics3DBackend, PhysicsSim, quat_to_matrix
 from footsim.robots.mjcf import CONTACT_FRICTION, FREE_JOINT, build_mjcf, sole_site
 from footsim.robots.spec import RobotSpec
 from footsim.tasks.scenes import Scene
 from footsim.walk.ik import LEG_JOINT_NAMES
-from footsim.walk.params import WalkParams
 
 CAMERA = "track"  # name of the render camera (on the torso)
 _INTEGRATORS = ("euler", "implicit", "implicitfast", "rk4")
@@ -281,32 +280,6 @@ class DmControlBackend(Physics3DBackend):
     """The dm-control backend (``backend=dm_control``; options in ``conf/backend/dm_control.yaml``)."""
 
     name = "dm_control"
-
-    def __init__(
-        self,
-        robot: RobotSpec,
-        walk: WalkParams,
-        control_dt: float = 0.01,
-        physics_dt: float = 0.005,
-        fall_threshold: float = DEFAULT_FALL_THRESHOLD,
-        collision_ends_episode: bool = False,
-        contact_check_every: int = 5,
-        settle_time: float = 0.1,
-        out_of_bounds: float = 50.0,
-        render_size=(480, 480),
-        integrator: str = "implicitfast",
-        torsional_friction: float | None = None,
-        servo_kp_scale: float = 1.0,
-        servo_damping_scale: float = 1.0,
-        servo_kv: float = 0.0,
-        max_render_size: int = 1024,
-    ):
-        super().__init__(
-            robot, walk,
-            DmControlSim(integrator=integrator, max_render_size=max_render_size, torsional_friction=torsional_friction,
-                         servo_kp_scale=servo_kp_scale, servo_damping_scale=servo_damping_scale,
-                         servo_kv=servo_kv, control_dt=control_dt),
-            control_dt=control_dt, physics_dt=physics_dt, fall_threshold=fall_threshold,
-            collision_ends_episode=collision_ends_episode, contact_check_every=contact_check_every,
-            settle_time=settle_time, out_of_bounds=out_of_bounds, render_size=tuple(render_size),
-        )
+    sim_class = DmControlSim
+    default_control_dt = 0.01
+    default_physics_dt = 0.005

@@ -23,12 +23,11 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
 
 from footsim.backends.base import RenderOverlay
 from footsim.backends.mujoco_randomization import MujocoRandomization
-from footsim.backends.physics3d import DEFAULT_FALL_THRESHOLD, Physics3DBackend, PhysicsSim
+from footsim.backends.physics3d import Physics3DBackend, PhysicsSim
 from footsim.robots.mjcf import FREE_JOINT, build_mjcf, import_mujoco
 from footsim.robots.spec import RobotSpec
 from footsim.tasks.scenes import Scene
 from footsim.walk.ik import LEG_JOINT_NAMES
-from footsim.walk.params import WalkParams
 
 mujoco = import_mujoco()
 
@@ -363,30 +362,6 @@ class MujocoBackend(Physics3DBackend):
     """The MuJoCo backend (``backend=mujoco``; options in ``conf/backend/mujoco.yaml``)."""
 
     name = "mujoco"
-
-    def __init__(
-        self,
-        robot: RobotSpec,
-        walk: WalkParams,
-        control_dt: float = 0.01,
-        physics_dt: float = 0.005,
-        fall_threshold: float = DEFAULT_FALL_THRESHOLD,
-        collision_ends_episode: bool = False,
-        contact_check_every: int = 5,
-        settle_time: float = 0.1,
-        out_of_bounds: float = 50.0,
-        render_size=(480, 480),
-        integrator: str = "implicitfast",
-        torsional_friction: float | None = None,
-        servo_kp_scale: float = 1.0,
-        servo_damping_scale: float = 1.0,
-        servo_kv: float = 0.0,
-    ):
-        super().__init__(
-            robot, walk, MujocoSim(integrator=integrator, torsional_friction=torsional_friction, servo_kp_scale=servo_kp_scale,
-                      servo_damping_scale=servo_damping_scale, servo_kv=servo_kv, control_dt=control_dt),
-            control_dt=control_dt, physics_dt=physics_dt,
-            fall_threshold=fall_threshold, collision_ends_episode=collision_ends_episode,
-            contact_check_every=contact_check_every, settle_time=settle_time, out_of_bounds=out_of_bounds,
-            render_size=tuple(render_size),
-        )
+    sim_class = MujocoSim
+    default_control_dt = 0.01
+    default_physics_dt = 0.005

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import inspect
 from abc import ABC, abstractmethod
 from collections import deque
 
@@ -118,25 +119,61 @@ class PhysicsSim(ABC):
 
 
 class Physics3DBackend(Backend):
-    """A ``Backend`` that walks the robot with the quintic engine on a ``PhysicsSim``."""
+    """A ``Backend`` that walks the robot with the quintic engine on a ``PhysicsSim``.
+
+    A backend subclass names its ``sim_class`` and default timing; every option of its config
+    that is not the driver's goes to the sim's constructor (``control_dt`` to both when the sim
+    takes it), so a backend adds no constructor of its own.
+    """
 
     kind = "3d"
     collision_ends_episode = False  # thesis: 3D contacts destabilise the robot, they do not end the episode
+    sim_class: type[PhysicsSim] | None = None
+    default_control_dt = 0.005
+    default_physics_dt = 0.005
 
     def __init__(
         self,
         robot: RobotSpec,
         walk: WalkParams,
-        sim: PhysicsSim,
-        control_dt: float = 0.005,
-        physics_dt: float = 0.005,
+        sim: PhysicsSim | None = None,
+        control_dt: float | None = None,
+        physics_dt: float | None = None,
         fall_threshold: float = DEFAULT_FALL_THRESHOLD,
         collision_ends_episode: bool = False,
         contact_check_every: int = 5,
         settle_time: float = 0.1,
         out_of_bounds: float = 50.0,
         render_size: tuple[int, int] = (480, 480),
+        **sim_options,
     ):
+        control_dt = self.default_control_dt if control_dt is None else control_dt
+        physics_dt = self.default_physics_dt if physics_dt is None else physics_dt
+        if sim is None:
+            sim = self._make_sim(sim_options, control_dt)
+        elif sim_options:
+            raise ValueError(f"backend {self.name}: unknown option(s) {sorted(sim_options)}")
+        try:
+            self._init_driver(robot, walk, sim, control_dt, physics_dt, fall_threshold, collision_ends_episode,
+                              contact_check_every, settle_time, out_of_bounds, render_size)
+        except BaseException:
+            sim.close()
+            raise
+
+    def _make_sim(self, options: dict, control_dt: float) -> PhysicsSim:
+        if self.sim_class is None:
+            raise TypeError(f"{type(self).__name__} has no sim_class; pass a PhysicsSim")
+        accepted = set(inspect.signature(self.sim_class.__init__).parameters) - {"self"}
+        unknown = sorted(set(options) - accepted)
+        if unknown:
+            raise ValueError(f"backend {self.name}: unknown option(s) {unknown}; "
+                             f"simulator options: {sorted(accepted - {'control_dt'})}")
+        if "control_dt" in accepted:
+            options = {**options, "control_dt": control_dt}
+        return self.sim_class(**options)
+
+    def _init_driver(self, robot, walk, sim, control_dt, physics_dt, fall_threshold, collision_ends_episode,
+                     contact_check_every, settle_time, out_of_bounds, render_size) -> None:
         substeps = control_dt / physics_dt
         if not (physics_dt > 0 and control_dt > 0 and abs(substeps - round(substeps)) < 1e-6):
             raise ValueError(f"backend.control_dt ({control_dt}) must be a positive multiple of backend.physics_dt ({physics_dt})")

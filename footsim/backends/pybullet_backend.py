@@ -51,11 +51,10 @@ import pybullet as p
 
 from footsim.backends.base import RenderOverlay
 from footsim.backends.physics3d import Physics3DBackend, PhysicsSim
-from footsim.robots.spec import Box, Capsule, Cylinder, RobotSpec, Sphere
+from footsim.robots.spec import RobotSpec
 from footsim.robots.urdf import build_urdf
 from footsim.tasks.scenes import Scene
 from footsim.walk.ik import LEG_JOINT_NAMES
-from footsim.walk.params import WalkParams
 
 # Collision groups / masks (collide when group_a & mask_b and group_b & mask_a).
 _ROBOT, _STATIC, _LEFT_LEG, _RIGHT_LEG = 1, 2, 4, 8
@@ -551,19 +550,6 @@ class PybulletBackend(Physics3DBackend):
 
     name = "pybullet"
 
-    _SIM_OPTIONS = ("self_collision", "rigid_upper_body", "lateral_friction", "spinning_friction", "rolling_friction", "position_gain_scale",
-                    "velocity_gain", "solver_iterations", "obstacle_height", "max_base_speed", "camera_distance",
-                    "camera_pitch")
-
-    def __init__(self, robot: RobotSpec, walk: WalkParams, **options):
-        sim_options = {k: options.pop(k) for k in self._SIM_OPTIONS if k in options}
-        options.setdefault("control_dt", 1.0 / 240.0)
-        options.setdefault("physics_dt", 1.0 / 240.0)
-        if "render_size" in options:
-            options["render_size"] = tuple(options["render_size"])
-        sim = PybulletSim(**sim_options)
-        try:
-            super().__init__(robot, walk, sim, **options)
-        except BaseException:
-            sim.close()
-            raise
+    sim_class = PybulletSim
+    default_control_dt = 1.0 / 240.0
+    default_physics_dt = 1.0 / 240.0

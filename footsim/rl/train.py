@@ -8,7 +8,6 @@ steps), TensorBoard logs in ``tb/``, and ``eval/`` with the evaluation results.
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 
