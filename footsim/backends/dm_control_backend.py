@@ -39,6 +39,7 @@ from dm_control.rl.control import PhysicsError
 
 from footsim.backends.base import RenderOverlay
 from footsim.backends.mujoco_backend import (
+    MujocoModelOptions,
     _BALL_RGBA,
     _OBSTACLE_BIT,
     _OBSTACLE_RGBA,
@@ -49,7 +50,6 @@ from footsim.backends.mujoco_backend import (
     N_CYLINDERS,
     OBSTACLE_HEIGHT,
     ServoFeedForward,
-    check_model_options,
     draw_overlay,
     fatal_warning_ids,
     fatal_warning_message,
@@ -64,7 +64,6 @@ from footsim.tasks.scenes import Scene
 from footsim.walk.ik import LEG_JOINT_NAMES
 
 CAMERA = "track"  # name of the render camera (on the torso)
-_INTEGRATORS = ("euler", "implicit", "implicitfast", "rk4")
 
 
 def _camera_frame() -> tuple[np.ndarray, np.ndarray]:
@@ -78,23 +77,11 @@ def _camera_frame() -> tuple[np.ndarray, np.ndarray]:
     return -CAMERA_DISTANCE * forward, np.concatenate([right, up])
 
 
-class DmControlSim(MujocoRandomization, PhysicsSim):  # randomization verbs: mujoco_randomization
+class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomization verbs: mujoco_randomization
     """``PhysicsSim`` on dm_control: an ``mjcf`` model, ``mjcf.Physics``, bindings by name."""
 
-    def __init__(self, integrator: str = "implicitfast", max_render_size: int = 1024,
-                 torsional_friction: float | None = None, servo_kp_scale: float = 1.0,
-                 servo_damping_scale: float = 1.0, servo_kv: float = 0.0, control_dt: float = 0.01):
-        if integrator not in _INTEGRATORS:
-            raise ValueError(f"backend.integrator must be one of {', '.join(_INTEGRATORS)}; got {integrator!r}")
-        self.integrator = integrator
-        self.torsional_friction, self.servo_kp_scale, self.servo_damping_scale = check_model_options(
-            torsional_friction, servo_kp_scale, servo_damping_scale)
-        ServoFeedForward(servo_kv, np.ones(1), control_dt)  # validates servo_kv and control_dt
-        self.servo_kv, self.control_dt = float(servo_kv), float(control_dt)
-        self._feed_forward: ServoFeedForward | None = None  # when servo_kv > 0
-        self.max_render_size = int(max_render_size)
-        self.mjcf_model = self.physics = None
-        self._error: str | None = None
+    mjcf_model = physics = None  # set by build()
+    _error: str | None = None
 
     # -- world ------------------------------------------------------------------------------
     def build(self, robot: RobotSpec, physics_dt: float) -> None:

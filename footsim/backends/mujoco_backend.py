@@ -158,12 +158,17 @@ def draw_overlay(scene, overlay: RenderOverlay) -> None:
                 mujoco.mjv_connector(geom, mujoco.mjtGeom.mjGEOM_LINE, 2.0, start, np.array([end[0], end[1], 0.02]))
 
 
-class MujocoSim(MujocoRandomization, PhysicsSim):  # randomization verbs: mujoco_randomization
-    """``PhysicsSim`` on the ``mujoco`` bindings (position actuators, implicitfast)."""
+INTEGRATORS = ("euler", "implicit", "implicitfast", "rk4")
+
+
+class MujocoModelOptions:
+    """The backend options both MuJoCo-engine sims (raw bindings, dm-control) take, validated once."""
 
     def __init__(self, integrator: str = "implicitfast", max_render_size: int = 1024,
                  torsional_friction: float | None = None, servo_kp_scale: float = 1.0,
                  servo_damping_scale: float = 1.0, servo_kv: float = 0.0, control_dt: float = 0.01):
+        if integrator not in INTEGRATORS:
+            raise ValueError(f"backend.integrator must be one of {', '.join(INTEGRATORS)}; got {integrator!r}")
         self.integrator = integrator
         self.torsional_friction, self.servo_kp_scale, self.servo_damping_scale = check_model_options(
             torsional_friction, servo_kp_scale, servo_damping_scale)
@@ -171,17 +176,19 @@ class MujocoSim(MujocoRandomization, PhysicsSim):  # randomization verbs: mujoco
         self.servo_kv, self.control_dt = float(servo_kv), float(control_dt)
         self._feed_forward: ServoFeedForward | None = None  # when servo_kv > 0
         self.max_render_size = int(max_render_size)
-        self.model = self.data = None
-        self._renderer = None
+
+
+class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomization verbs: mujoco_randomization
+    """``PhysicsSim`` on the ``mujoco`` bindings (position actuators, implicitfast)."""
+
+    model = data = None  # set by build()
+    _renderer = None
 
     # -- world ------------------------------------------------------------------------------
     def build(self, robot: RobotSpec, physics_dt: float) -> None:
         built = build_mjcf(robot, floor=True, timestep=physics_dt)
         spec = built.spec
-        try:
-            spec.option.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{self.integrator.upper()}")
-        except AttributeError:
-            raise ValueError(f"backend.integrator must be one of euler, implicit, implicitfast, rk4; got {self.integrator!r}") from None
+        spec.option.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{self.integrator.upper()}")
         spec.visual.global_.offwidth = self.max_render_size
         spec.visual.global_.offheight = self.max_render_size
         world = spec.worldbody
