@@ -43,6 +43,10 @@ START = {"freq": 1.0, "double_support_ratio": 0.05, "foot_distance": 0.1799, "fo
          "servo_kv": 4.0}
 
 
+# Gains of footsim.backends.physics3d.TrunkStabilizer [rad per rad of trunk error]; hand scans
+# on MuJoCo: hip roll 0.3-0.5 helps the lateral sequences, pitch gains alone do not.
+STABILIZER_RANGES = {"hip_roll": (0.0, 1.2), "hip_pitch": (-0.5, 1.0), "ankle_roll": (-0.5, 0.5), "ankle_pitch": (-0.5, 0.5)}
+
 # Not searched: trunk_y_offset stays 0.  The robot and the engine are mirror-symmetric (checked
 # to 1e-15 on mirrored lateral/turn trajectories), so a lateral trunk offset only trades one side
 # for the other: the previous tuning's -0.0049 m made lateral-left pass and lateral-right fail
@@ -93,6 +97,8 @@ def main(argv: list[str]) -> None:
                    "servo_kp_scale": trial.suggest_float("servo_kp_scale", 1.5, 3.0),
                    "servo_damping_scale": trial.suggest_float("servo_damping_scale", 0.2, 0.6),
                    "servo_kv": trial.suggest_float("servo_kv", 1.0, 8.0)}
+        if "stabilizer" in args:  # IMU feedback gains of the shared driver (TrunkStabilizer)
+            options["stabilizer"] = {g: trial.suggest_float(f"stab_{g}", lo, hi) for g, (lo, hi) in STABILIZER_RANGES.items()}
         cost, detail = evaluate(name, walk, options, commanded, sequences)
         trial.set_user_attr("detail", detail)
         return cost

@@ -49,6 +49,52 @@ def fused_roll_pitch(rotation: np.ndarray) -> tuple[float, float]:
     return roll, pitch
 
 
+class TrunkStabilizer:
+    """IMU feedback on the trunk orientation, in joint space (the Bit-Bots' walk has the same
+    idea as PID controllers on the fused trunk pitch and roll).
+
+    Each control tick the error between the measured fused roll/pitch of the base and the
+    engine's planned trunk roll/pitch is multiplied by a gain [rad/rad] and added to the hip
+    and ankle roll/pitch targets of both legs.  With the legs' +x (roll) and +y (pitch) joint
+    axes, a positive hip gain turns the trunk back towards its planned orientation relative to
+    the legs; an ankle gain tilts the soles against the lean.  All gains 0 = open loop (the
+    engine's targets untouched, no extra base reads).
+    """
+
+    GAINS = ("hip_roll", "hip_pitch", "ankle_roll", "ankle_pitch")
+    _HIP_ROLL, _HIP_PITCH, _ANKLE_PITCH, _ANKLE_ROLL = [1, 7], [2, 8], [4, 10], [5, 11]  # LEG_JOINT_NAMES
+
+    def __init__(self, hip_roll: float = 0.0, hip_pitch: float = 0.0, ankle_roll: float = 0.0, ankle_pitch: float = 0.0):
+        gains = {"hip_roll": hip_roll, "hip_pitch": hip_pitch, "ankle_roll": ankle_roll, "ankle_pitch": ankle_pitch}
+        for key, value in gains.items():
+            if not (isinstance(value, (int, float)) and math.isfinite(value)):
+                raise ValueError(f"backend.stabilizer.{key} must be a finite number, got {value!r}")
+        self.hip_roll, self.hip_pitch = float(hip_roll), float(hip_pitch)
+        self.ankle_roll, self.ankle_pitch = float(ankle_roll), float(ankle_pitch)
+        self.active = any(v != 0.0 for v in gains.values())
+
+    @classmethod
+    def from_config(cls, config) -> "TrunkStabilizer":
+        if config is None:
+            return cls()
+        config = dict(config)
+        unknown = sorted(set(config) - set(cls.GAINS))
+        if unknown:
+            raise ValueError(f"backend.stabilizer: unknown key(s) {unknown}; valid: {list(cls.GAINS)}")
+        return cls(**config)
+
+    def correct(self, targets: np.ndarray, rotation: np.ndarray, planned_roll: float, planned_pitch: float) -> np.ndarray:
+        """``targets`` (12,) corrected for the measured base ``rotation`` (a new array)."""
+        roll, pitch = fused_roll_pitch(rotation)
+        e_roll, e_pitch = roll - planned_roll, pitch - planned_pitch
+        out = np.array(targets, dtype=float)
+        out[self._HIP_ROLL] += self.hip_roll * e_roll
+        out[self._HIP_PITCH] += self.hip_pitch * e_pitch
+        out[self._ANKLE_ROLL] += self.ankle_roll * e_roll
+        out[self._ANKLE_PITCH] += self.ankle_pitch * e_pitch
+        return out
+
+
 def quat_to_matrix(q: np.ndarray) -> np.ndarray:
     """Rotation matrix of a unit quaternion (w, x, y, z)."""
     w, x, y, z = (float(v) for v in q)
@@ -145,6 +191,7 @@ class Physics3DBackend(Backend):
         settle_time: float = 0.1,
         out_of_bounds: float = 50.0,
         render_size: tuple[int, int] = (480, 480),
+        stabilizer: dict | None = None,
         **sim_options,
     ):
         control_dt = self.default_control_dt if control_dt is None else control_dt
@@ -154,6 +201,7 @@ class Physics3DBackend(Backend):
         elif sim_options:
             raise ValueError(f"backend {self.name}: unknown option(s) {sorted(sim_options)}")
         try:
+            self.stabilizer = TrunkStabilizer.from_config(stabilizer)
             self._init_driver(robot, walk, sim, control_dt, physics_dt, fall_threshold, collision_ends_episode,
                               contact_check_every, settle_time, out_of_bounds, render_size)
         except BaseException:
@@ -324,8 +372,14 @@ class Physics3DBackend(Backend):
         set_targets = self._send_targets if randomized else self.sim.set_leg_targets
         advance = self.sim.advance
         watch_contacts = bool(self.scene.all_obstacles)
+        stabilize = self.stabilizer.correct if self.stabilizer.active else None
+        trunk = trajectory.trunk
         for ticks in range(1, len(targets) + 1):
-            set_targets(targets[ticks - 1])
+            if stabilize is None:
+                set_targets(targets[ticks - 1])
+            else:
+                rotation = self.sim.base_pose()[1]
+                set_targets(stabilize(targets[ticks - 1], rotation, trunk[ticks - 1, 3], trunk[ticks - 1, 4]))
             advance(substeps)
             if ticks % check == 0:
                 error, fell = self._status()
