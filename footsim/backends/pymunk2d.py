@@ -1,9 +1,13 @@
-"""The 2D geometric backend (thesis 5.1.1), with pymunk for collisions.
+"""The 2D geometric backend (thesis 5.1.1).
 
 Feet land exactly where the planar footstep geometry puts them (including foot–foot
-interference); the feet and the trunk's footprint are pymunk polygons, obstacles static circles,
-and a collision is any overlap found by pymunk shape queries — at both put-downs and at each
-flying foot's mid-swing pose.  The navigation pose is the mean of the two feet.
+interference); the feet and the trunk's footprint are rectangles, obstacles static circles, and
+a collision is any overlap of a rectangle with a circle — at both put-downs and at each flying
+foot's mid-swing pose.  The overlap test is closed-form (:func:`box_hits_circles`: the distance
+from the circle's centre to the rectangle is at most the radius), which is what a pymunk shape
+query of the same polygon against the same circles answers (``tests/test_backend_pymunk2d.py``
+checks the two against each other); :meth:`Pymunk2DBackend.space` builds that pymunk space on
+demand.  The navigation pose is the mean of the two feet.
 """
 
 from __future__ import annotations
@@ -24,6 +28,30 @@ from footsim.walk.params import WalkParams
 def _box(body: pymunk.Body, length: float, width: float) -> pymunk.Poly:
     hl, hw = 0.5 * length, 0.5 * width
     return pymunk.Poly(body, [(-hl, -hw), (hl, -hw), (hl, hw), (-hl, hw)])
+
+
+def box_hits_circles(x: float, y: float, theta: float, half_length: float, half_width: float,
+                     circles) -> bool:
+    """Does the rectangle ``2·half_length × 2·half_width`` centred at ``(x, y)``, turned by
+    ``theta``, overlap (or touch) any circle ``(cx, cy, r)`` of ``circles``?
+
+    Closed form of a pymunk shape query of that polygon against static circles: the closest
+    point of the rectangle to the circle's centre lies within ``r`` (centre inside: distance 0).
+    """
+    c, s = math.cos(theta), math.sin(theta)
+    for cx, cy, r in circles:
+        dx, dy = cx - x, cy - y
+        u = abs(c * dx + s * dy) - half_length  # > 0: outside the rectangle along its length
+        if u > r:
+            continue
+        v = abs(c * dy - s * dx) - half_width
+        if v > r:
+            continue
+        u = u if u > 0.0 else 0.0
+        v = v if v > 0.0 else 0.0
+        if u * u + v * v <= r * r:
+            return True
+    return False
 
 
 class Pymunk2DBackend(Backend):
@@ -49,10 +77,13 @@ class Pymunk2DBackend(Backend):
         self.geometry = FootstepGeometry(
             robot.step_limits, robot.foot_length, robot.foot_width, walk.foot_distance
         )
-        # Circumradii for the broad phase: a shape farther than this from every obstacle can't touch one.
-        self._foot_radius = math.hypot(0.5 * robot.foot_length, 0.5 * robot.foot_width)
-        self._trunk_radius = math.hypot(*(0.5 * v for v in robot.torso_footprint))
-        self.space: pymunk.Space | None = None
+        self._foot_half = (0.5 * robot.foot_length, 0.5 * robot.foot_width)
+        self._trunk_half = tuple(0.5 * v for v in robot.torso_footprint)
+        # Broad phase: a shape centred farther than its circumradius (+ a rounding margin) from
+        # an obstacle can't touch it.
+        self._reach = max(math.hypot(*self._foot_half), math.hypot(*self._trunk_half)) * (1.0 + 1e-9) + 1e-9
+        self._space: pymunk.Space | None = None
+        self._obstacles: list[tuple[float, float, float]] = []
         self.feet: FeetState | None = None
         self.history: list[tuple[Side, Pose2D]] = []
         self.nav_history: list[Pose2D] = []
@@ -82,44 +113,51 @@ class Pymunk2DBackend(Backend):
     def reset(self, scene: Scene, rng: np.random.Generator) -> Pose2D:
         self.scene = scene
         self._rng = rng
-        self.space = pymunk.Space()
-        for obstacle in scene.all_obstacles:
-            self.space.add(pymunk.Circle(self.space.static_body, obstacle.r, (obstacle.x, obstacle.y)))
-        self._probe_body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
-        self._foot_shape = _box(self._probe_body, self.robot.foot_length, self.robot.foot_width)
-        self._trunk_body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
-        self._trunk_shape = _box(self._trunk_body, *self.robot.torso_footprint)
-        robot_only = pymunk.ShapeFilter(group=1)  # the robot's own shapes never collide with each other
-        self._foot_shape.filter = robot_only
-        self._trunk_shape.filter = robot_only
-        self.space.add(self._probe_body, self._foot_shape, self._trunk_body, self._trunk_shape)
+        self._space = None
         self._obstacles = [(o.x, o.y, o.r) for o in scene.all_obstacles]
         self.feet = self.geometry.initial_feet()
+        nav = self.feet.nav_pose
         self.history = [(Side.LEFT, self.feet.left), (Side.RIGHT, self.feet.right)]
-        self.nav_history = [self.feet.nav_pose]
-        return self.feet.nav_pose
+        self.nav_history = [nav]
+        return nav
+
+    @property
+    def space(self) -> pymunk.Space | None:
+        """The episode's scene as a pymunk space (obstacles as static circles, the foot and trunk
+        footprints as kinematic polygons), built on first use: collisions are tested in closed
+        form (:func:`box_hits_circles`), this is for inspection and tests."""
+        if self._space is None and self.scene is not None:
+            space = pymunk.Space()
+            for obstacle in self.scene.all_obstacles:
+                space.add(pymunk.Circle(space.static_body, obstacle.r, (obstacle.x, obstacle.y)))
+            probe_body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+            foot_shape = _box(probe_body, self.robot.foot_length, self.robot.foot_width)
+            trunk_body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+            trunk_shape = _box(trunk_body, *self.robot.torso_footprint)
+            robot_only = pymunk.ShapeFilter(group=1)  # the robot's own shapes never collide with each other
+            foot_shape.filter = robot_only
+            trunk_shape.filter = robot_only
+            space.add(probe_body, foot_shape, trunk_body, trunk_shape)
+            self._space = space
+        return self._space
 
     def execute(self, double_step: DoubleStep) -> StepResult:
         if self.feet is None:
             raise RuntimeError("backend pymunk: execute() before reset()")
         before = self.feet
-        noisy = any(self._noise_sigma)
+        noisy = self._noise_sigma[0] or self._noise_sigma[1] or self._noise_sigma[2]
         after_first, after_second, executed, n_interfered = self.geometry.execute(
             before, double_step, self._perturb if noisy else None)
-        collided = False
-        if self.scene.all_obstacles:
-            collided = (
-                self._swing_collides(before, after_first, Side.RIGHT)
-                or self._swing_collides(after_first, after_second, Side.LEFT)
-            )
+        collided = bool(self._obstacles) and self._double_step_collides(before, after_first, after_second)
         fell = False
         if self.execution_model is not None:
             after_first, after_second, fell = self._apply_execution_model(before, after_first, after_second, double_step)
         self.feet = after_second
+        nav = mean_pose(after_second[0], after_second[1])
         self.history += [(Side.RIGHT, after_first.right), (Side.LEFT, after_second.left)]
-        self.nav_history.append(after_second.nav_pose)
+        self.nav_history.append(nav)
         return StepResult(
-            pose=after_second.nav_pose,
+            pose=nav,
             duration_s=self._duration,
             feet=after_second,
             executed=executed,
@@ -150,23 +188,37 @@ class Pymunk2DBackend(Backend):
         return moved(after_first, 0.5), moved(after_second, 1.0), fell
 
     # -- collisions -----------------------------------------------------------------------
-    def _swing_collides(self, start: FeetState, end: FeetState, flying: Side) -> bool:
-        """Flying foot at mid-swing and at put-down, and the trunk at put-down."""
-        mid = mean_pose(start.foot(flying), end.foot(flying))
+    def _double_step_collides(self, before: FeetState, after_first: FeetState, after_second: FeetState) -> bool:
+        """Each flying foot at mid-swing and at put-down, and the trunk at each put-down.
+
+        Broad phase first: every one of those six shapes is centred inside the bounding box of
+        the four foot positions involved (midpoints and the navigation poses are means of them),
+        so an obstacle farther from that box than its radius plus the larger circumradius can't
+        touch any of them.
+        """
+        start_right, (mid_left, right), end_left = before[1], after_first, after_second[0]
+        xs = (start_right[0], right[0], mid_left[0], end_left[0])
+        ys = (start_right[1], right[1], mid_left[1], end_left[1])
+        reach = self._reach
+        lo_x, hi_x, lo_y, hi_y = min(xs) - reach, max(xs) + reach, min(ys) - reach, max(ys) + reach
+        near = [o for o in self._obstacles
+                if o[0] + o[2] >= lo_x and o[0] - o[2] <= hi_x and o[1] + o[2] >= lo_y and o[1] - o[2] <= hi_y]
+        if not near:
+            return False
         return (
-            self._hits(self._probe_body, self._foot_shape, self._foot_radius, mid)
-            or self._hits(self._probe_body, self._foot_shape, self._foot_radius, end.foot(flying))
-            or self._hits(self._trunk_body, self._trunk_shape, self._trunk_radius, end.nav_pose)
+            self._swing_collides(start_right, right, mean_pose(mid_left, right), near)
+            or self._swing_collides(mid_left, end_left, mean_pose(end_left, right), near)
         )
 
-    def _hits(self, body: pymunk.Body, shape: pymunk.Shape, radius: float, pose: Pose2D) -> bool:
-        px, py = pose.x, pose.y
-        if all((ox - px) ** 2 + (oy - py) ** 2 > (r + radius) ** 2 for ox, oy, r in self._obstacles):
-            return False  # broad phase: no obstacle within the shape's circumradius
-        body.position = (px, py)
-        body.angle = pose.theta
-        self.space.reindex_shapes_for_body(body)
-        return any(hit.shape.body is self.space.static_body for hit in self.space.shape_query(shape))
+    def _swing_collides(self, start: Pose2D, end: Pose2D, trunk: Pose2D, circles) -> bool:
+        """Flying foot (``start`` → ``end``) at mid-swing and at put-down, and the trunk at put-down."""
+        hl, hw = self._foot_half
+        mid = mean_pose(start, end)
+        return (
+            box_hits_circles(mid[0], mid[1], mid[2], hl, hw, circles)
+            or box_hits_circles(end[0], end[1], end[2], hl, hw, circles)
+            or box_hits_circles(trunk[0], trunk[1], trunk[2], *self._trunk_half, circles)
+        )
 
     # -- rendering ------------------------------------------------------------------------
     def render(self, overlay: RenderOverlay | None = None) -> np.ndarray:
@@ -175,4 +227,4 @@ class Pymunk2DBackend(Backend):
         return draw_scene(self.scene, self.history, self.nav_history, self.robot, overlay)
 
     def close(self) -> None:
-        self.space = None
+        self._space = None

@@ -18,6 +18,7 @@ import os
 import sys
 import tempfile
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -38,10 +39,21 @@ class Scene:
     obstacles: tuple[Obstacle, ...] = ()
     ball: Obstacle | None = None
 
-    @property
+    @cached_property
     def all_obstacles(self) -> tuple[Obstacle, ...]:
         """Obstacles and the ball: everything a ray or a foot can hit."""
         return self.obstacles + ((self.ball,) if self.ball is not None else ())
+
+    # Plain ``(x, y, r)`` tuples for the per-step hot paths (computed once per scene).
+    @cached_property
+    def circles(self) -> tuple[tuple[float, float, float], ...]:
+        """``all_obstacles`` as ``(x, y, r)`` tuples."""
+        return tuple((o.x, o.y, o.r) for o in self.all_obstacles)
+
+    @cached_property
+    def obstacle_circles(self) -> tuple[tuple[float, float, float], ...]:
+        """``obstacles`` (without the ball) as ``(x, y, r)`` tuples."""
+        return tuple((o.x, o.y, o.r) for o in self.obstacles)
 
     def to_dict(self) -> dict:
         return {

@@ -21,7 +21,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from footsim.geometry import Pose2D, mean_pose
+from footsim.geometry import Pose2D, mean_pose, wrap_angle
 
 
 class Side(str, Enum):
@@ -71,6 +71,27 @@ class Footstep(NamedTuple):
     theta: float = 0.0
 
 
+_isfinite = math.isfinite
+
+
+def action_values(action) -> list[float]:
+    """A 6-D action as 6 plain floats clipped to [-1, 1] (any array-like holding 6 values).
+
+    Non-finite values raise ``ValueError`` (plain floats and lists: this runs every env step).
+    """
+    if type(action) is np.ndarray and action.shape == (6,) and action.dtype.char in "fd":
+        values = action.tolist()
+    else:
+        a = np.asarray(action, dtype=float).reshape(-1)
+        if a.shape != (6,):
+            raise ValueError(f"a double-step action has 6 values, got shape {np.shape(action)}")
+        values = a.tolist()
+    for x in values:
+        if not _isfinite(x):
+            raise ValueError(f"action contains NaN or inf: {values}")
+    return [-1.0 if x < -1.0 else 1.0 if x > 1.0 else x for x in values]
+
+
 class DoubleStep(NamedTuple):
     """The unit every controller emits: the right foot's step, then the left foot's."""
 
@@ -83,12 +104,11 @@ class DoubleStep(NamedTuple):
 
         Non-finite values raise ``ValueError``; finite values outside [-1, 1] are clipped.
         """
-        a = np.asarray(action, dtype=float).reshape(-1)
-        if a.shape != (6,):
-            raise ValueError(f"a double-step action has 6 values, got shape {np.shape(action)}")
-        if not np.isfinite(a).all():
-            raise ValueError(f"action contains NaN or inf: {a.tolist()}")
-        v = [min(max(x, -1.0), 1.0) for x in a.tolist()]
+        return cls.from_unit(action_values(action), limits)
+
+    @classmethod
+    def from_unit(cls, v: list[float], limits: StepLimits) -> "DoubleStep":
+        """Scale 6 already validated and clipped values (see :func:`action_values`)."""
         lx, ly, lt = limits.x, limits.y, limits.theta
         return cls(Footstep(v[0] * lx, v[1] * ly, v[2] * lt), Footstep(v[3] * lx, v[4] * ly, v[5] * lt))
 
@@ -160,6 +180,11 @@ class FootstepGeometry:
                 raise ValueError(f"FootstepGeometry.{name} must be > 0, got {getattr(self, name)!r}")
         if self.min_foot_gap < 0:
             raise ValueError(f"FootstepGeometry.min_foot_gap must be >= 0, got {self.min_foot_gap!r}")
+        # Derived constants of the hot path (the dataclass is frozen: set once here).
+        object.__setattr__(self, "_clear", math.hypot(self.foot_length + self.min_foot_gap,
+                                                      self.foot_width + self.min_foot_gap))
+        object.__setattr__(self, "_half_gapped", (0.5 * (self.foot_length + self.min_foot_gap),
+                                                  0.5 * (self.foot_width + self.min_foot_gap)))
         # The resting pose must be interference-free at any allowed turn, or the lateral
         # back-off in ``landing`` could not find a valid pose.
         for theta in (-self.limits.theta, self.limits.theta):
@@ -176,12 +201,12 @@ class FootstepGeometry:
 
     @property
     def _clear_distance(self) -> float:
-        return math.hypot(self.foot_length + self.min_foot_gap, self.foot_width + self.min_foot_gap)
+        return self._clear
 
     def _band(self, x: float, theta: float) -> tuple[float, float] | None:
         # Each plate grows by half the gap, so "overlap" means "closer than min_foot_gap".
-        return _overlap_band_y(x, theta, 0.5 * (self.foot_length + self.min_foot_gap),
-                               0.5 * (self.foot_width + self.min_foot_gap))
+        half_l, half_w = self._half_gapped
+        return _overlap_band_y(x, theta, half_l, half_w)
 
     def feet_interfere(self, x: float, y: float, theta: float) -> bool:
         """Does a foot at (x, y, theta) relative to the other foot come closer than the gap?"""
@@ -196,15 +221,24 @@ class FootstepGeometry:
         foot than the gap, its lateral offset is backed off towards the resting pose to the edge
         of the overlap band — the foot–foot interference that makes inward steps shorter.
         """
-        x, y, theta = self.limits.clip(step.x, step.y, step.theta)
-        rest_y = flying.sign * self.foot_distance
-        if abs(rest_y + y) >= self._clear_distance:  # farther apart than two circumradii: no overlap
-            return Pose2D(x, rest_y + y, theta), Footstep(x, y, theta), False
+        x, y, theta, interfered = self._land(flying is Side.LEFT, step[0], step[1], step[2])
+        return Pose2D(x, (self.foot_distance if flying is Side.LEFT else -self.foot_distance) + y, theta), \
+            Footstep(x, y, theta), interfered
+
+    def _land(self, left: bool, x: float, y: float, theta: float) -> tuple[float, float, float, bool]:
+        """:meth:`landing` on plain floats: the executed ``(x, y, theta)`` and whether it interfered."""
+        lim = self.limits
+        x = min(max(x, -lim.x), lim.x)
+        y = min(max(y, -lim.y), lim.y)
+        theta = min(max(theta, -lim.theta), lim.theta)
+        rest_y = self.foot_distance if left else -self.foot_distance
+        if abs(rest_y + y) >= self._clear:  # farther apart than two circumradii: no overlap
+            return x, y, theta, False
         band = self._band(x, theta)
         interfered = band is not None and band[0] < rest_y + y < band[1]
         if interfered:  # the resting side of the band is clear (checked at construction)
-            y = (band[1] if flying is Side.LEFT else band[0]) - rest_y
-        return Pose2D(x, rest_y + y, theta), Footstep(x, y, theta), interfered
+            y = (band[1] if left else band[0]) - rest_y
+        return x, y, theta, interfered
 
     def execute(self, feet: FeetState, double_step: DoubleStep, perturb=None):
         """Place both footsteps of a double step.
@@ -213,15 +247,24 @@ class FootstepGeometry:
         step then starts from where the foot really is.  Returns ``(feet after the first half
         step, feet after the second, executed DoubleStep, number of interfering steps)``.
         """
-        executed = []
-        halves = []
-        n_interfered = 0
-        for flying, step in double_step.steps():
-            support = feet.foot(flying.other)
-            rel, done, interfered = self.landing(flying, step)
-            landed = support.compose(rel)
-            feet = feet.with_foot(flying, perturb(landed) if perturb is not None else landed)
-            executed.append(done)
-            halves.append(feet)
-            n_interfered += int(interfered)
-        return halves[0], halves[1], DoubleStep(executed[0], executed[1]), n_interfered
+        # The right foot flies first (left support), then the left foot (right support).
+        first, second = double_step
+        left, right = feet
+        x, y, theta, hit_first = self._land(False, first[0], first[1], first[2])
+        right = _place(left, x, y - self.foot_distance, theta)
+        if perturb is not None:
+            right = perturb(right)
+        done_first = Footstep(x, y, theta)
+        x, y, theta, hit_second = self._land(True, second[0], second[1], second[2])
+        left = _place(right, x, y + self.foot_distance, theta)
+        if perturb is not None:
+            left = perturb(left)
+        return (FeetState(feet[0], right), FeetState(left, right),
+                DoubleStep(done_first, Footstep(x, y, theta)), int(hit_first) + int(hit_second))
+
+
+def _place(support: Pose2D, x: float, y: float, theta: float) -> Pose2D:
+    """``support.compose(Pose2D(x, y, theta))`` without the intermediate tuple."""
+    sx, sy, st = support
+    c, s = math.cos(st), math.sin(st)
+    return Pose2D(sx + c * x - s * y, sy + s * x + c * y, wrap_angle(st + theta))
