@@ -17,9 +17,11 @@ from footsim.backends.base import RenderOverlay
 from footsim.geometry import Pose2D
 from footsim.tasks import nav
 from footsim.tasks.scenes import Scene
-from footsim.walk.footsteps import DoubleStep
+from footsim.walk.footsteps import DoubleStep, action_values
 
 OUTCOMES = ("running", "success", "timeout", "fall", "collision", "sim_error")
+_ZERO_ACTION = [0.0] * 6  # never mutated: actions are fresh lists
+isfinite = math.isfinite
 
 
 class FootstepEnv(gym.Env):
@@ -90,7 +92,7 @@ class FootstepEnv(gym.Env):
         self.observation_space = gym.spaces.Box(-1.0, 1.0, shape=(self.task.observation_size,), dtype=np.float32)
 
         self.scene: Scene | None = None
-        self._prev_actions = (np.zeros(6), np.zeros(6))
+        self._prev_actions = (_ZERO_ACTION, _ZERO_ACTION)  # a(t-1), a(t-2) as lists of 6 floats
         self._steps = 0
         self._time = 0.0
         self._pose = Pose2D()
@@ -117,7 +119,7 @@ class FootstepEnv(gym.Env):
             self._randomization = self.randomizer.episode(self._random_rng)
             self.backend.apply_randomization(self._randomization)
         self._pose = self.backend.reset(self.scene, backend_rng)
-        self._prev_actions = (np.zeros(6), np.zeros(6))
+        self._prev_actions = (_ZERO_ACTION, _ZERO_ACTION)
         self._steps = 0
         self._time = 0.0
         self._outcome = "running"
@@ -129,8 +131,8 @@ class FootstepEnv(gym.Env):
     def step(self, action):
         if self.scene is None:
             raise RuntimeError("step() called before reset()")
-        double_step = DoubleStep.from_action(action, self.limits)  # validates: 6 finite values
-        action = np.asarray(action, dtype=float).reshape(6).clip(-1.0, 1.0)
+        action = action_values(action)  # 6 finite floats clipped to [-1, 1]; raises otherwise
+        double_step = DoubleStep.from_unit(action, self.limits)
         if self.randomizer.active:
             changed = self.randomizer.step(self._random_rng)
             if changed:
@@ -141,13 +143,15 @@ class FootstepEnv(gym.Env):
         self._time += result.duration_s
 
         terminated = False
-        if result.sim_error is None and all(math.isfinite(v) for v in result.pose):
-            self._pose = result.pose
+        pose = result.pose
+        if result.sim_error is None and isfinite(pose[0]) and isfinite(pose[1]) and isfinite(pose[2]):
+            self._pose = pose
         else:  # keep the last valid pose: the learner must never see NaN
             result.sim_error = result.sim_error or "non-finite pose"
-        features = nav.goal_features(self._pose, self.scene.goal)
-        terms = nav.reward_terms(self._pose, self.scene, action, self._prev_actions[0], features)
-        reward = nav.weighted_reward(terms, self.task.reward_weights)
+        task, scene = self.task, self.scene
+        features = nav.goal_features(self._pose, scene.goal)
+        terms = nav.reward_terms(self._pose, scene, action, self._prev_actions[0], features)
+        reward = nav.weighted_reward(terms, task.reward_weights)
 
         if result.sim_error is not None:
             self._outcome, terminated, reward = "sim_error", True, 0.0
@@ -155,16 +159,16 @@ class FootstepEnv(gym.Env):
             self._outcome, terminated = "fall", True
         elif result.collided and self.backend.collision_ends_episode:
             self._outcome, terminated = "collision", True
-        elif nav.is_success(self._pose, self.scene.goal, self.task, features):
+        elif nav.is_success(self._pose, scene.goal, task, features):
             self._outcome, terminated = "success", True
-            reward += float(self.task.max_steps - self._steps)  # the rest of the episode at max reward
-        truncated = not terminated and self._steps >= self.task.max_steps
+            reward += float(task.max_steps - self._steps)  # the rest of the episode at max reward
+        truncated = not terminated and self._steps >= task.max_steps
         if truncated:
             self._outcome = "timeout"
 
         self._prev_actions = (action, self._prev_actions[0])
         self._believed = self.noise.believe(self._pose, self._noise_rng)
-        obs = nav.observation(self._believed, self.scene, self._prev_actions, self.task,
+        obs = nav.observation(self._believed, scene, self._prev_actions, task,
                               features if self._believed is self._pose else None)
         info = self._info(terms, result)
         return obs, float(reward), terminated, truncated, info
@@ -194,13 +198,15 @@ class FootstepEnv(gym.Env):
             "outcome": self._outcome,
             "time_s": self._time,
             "steps": self._steps,
-            "reward_terms": dict(terms),
+            "reward_terms": terms.copy(),
         }
         if self.randomizer.active:
             info["randomization"] = dict(self._randomization)
         if result is not None:
             info["collided"] = bool(result.collided)
-            info["executed_action"] = None if result.executed is None else result.executed.as_array()
+            executed = result.executed
+            info["executed_action"] = None if executed is None else np.array(
+                (*executed[0], *executed[1]), dtype=float)
             if result.sim_error is not None:
                 info["sim_error"] = result.sim_error
             info.update(result.info)

@@ -64,7 +64,16 @@ def goal_features(pose: Pose2D, goal: Pose2D) -> tuple[float, float, float]:
     return d, alpha, beta
 
 
-_RAY_DIRECTIONS: dict[int, np.ndarray] = {}
+_RAY_DIRECTIONS: dict[int, tuple[list[float], list[float]]] = {}
+
+
+def _ray_directions(n_rays: int) -> tuple[list[float], list[float]]:
+    """cos and sin of the ray headings ``k·2π/n`` in the robot frame (cached per n)."""
+    base = _RAY_DIRECTIONS.get(n_rays)
+    if base is None:
+        k = np.arange(n_rays) * (2.0 * math.pi / n_rays)
+        base = _RAY_DIRECTIONS[n_rays] = (np.cos(k).tolist(), np.sin(k).tolist())
+    return base
 
 
 def ray_distances(pose: Pose2D, obstacles: tuple[Obstacle, ...], n_rays: int, max_range: float) -> np.ndarray:
@@ -73,43 +82,81 @@ def ray_distances(pose: Pose2D, obstacles: tuple[Obstacle, ...], n_rays: int, ma
     Ray k points at heading ``pose.theta + k·2π/n``; misses report ``max_range``; an origin inside
     a circle reports 0.
     """
-    if not obstacles:
-        return np.full(n_rays, max_range)
-    base = _RAY_DIRECTIONS.get(n_rays)
-    if base is None:
-        k = np.arange(n_rays) * (2.0 * math.pi / n_rays)
-        base = _RAY_DIRECTIONS[n_rays] = np.stack([np.cos(k), np.sin(k)])  # (2, n)
-    c, s = math.cos(pose.theta), math.sin(pose.theta)
-    # Obstacle centres in the robot frame, so the ray directions need no rotation.
-    rel = np.array([[c * (o.x - pose.x) + s * (o.y - pose.y), -s * (o.x - pose.x) + c * (o.y - pose.y),
-                     (o.x - pose.x) ** 2 + (o.y - pose.y) ** 2 - o.r * o.r] for o in obstacles])  # (m, 3)
-    # |t·u − c|² = r²  →  t = u·c − sqrt((u·c)² − (|c|² − r²))
-    proj = rel[:, :2] @ base  # (m, n)
-    disc = proj * proj - rel[:, 2:3]
-    inside = rel[:, 2:3] <= 0.0
-    t = proj - np.sqrt(np.maximum(disc, 0.0))
-    t = np.where(inside, 0.0, np.where((disc >= 0.0) & (t >= 0.0), t, max_range))
-    return np.minimum(t.min(axis=0), max_range)
+    return np.array(ray_list(pose, tuple((o.x, o.y, o.r) for o in obstacles), n_rays, max_range))
+
+
+def ray_list(pose: Pose2D, circles, n_rays: int, max_range: float) -> list[float]:
+    """:func:`ray_distances` as a list, for circles given as ``(x, y, r)`` tuples.
+
+    Closed form per ray and circle: with ``u`` the ray's unit direction and ``c`` the circle's
+    centre relative to the origin, ``|t·u − c|² = r²`` gives ``t = u·c − sqrt((u·c)² − (|c|² − r²))``.
+    Only rays within the circle's angular half-width ``asin(r/|c|)`` of its bearing can hit it, so
+    each circle is tested against those rays only (plus a tiny angular margin for rounding), and
+    circles whose nearest point is beyond ``max_range`` are skipped.
+    """
+    n = n_rays
+    out = [max_range] * n
+    if not circles:
+        return out
+    cos_k, sin_k = _ray_directions(n)
+    px, py, theta = pose
+    c, s = math.cos(theta), math.sin(theta)
+    per_rad = n / (2.0 * math.pi)  # ray index per radian of heading
+    far = max_range + 1e-6 * (1.0 + max_range)
+    sqrt, floor, ceil = math.sqrt, math.floor, math.ceil
+    for ox, oy, r in circles:
+        dx, dy = ox - px, oy - py
+        cc = dx ** 2 + dy ** 2 - r * r  # |c|² − r²
+        if cc <= 0.0:  # the origin is inside (or on) a circle: every ray reports 0
+            return [0.0] * n
+        dist = sqrt(dx * dx + dy * dy)
+        if dist - r > far:  # every point of the circle is beyond the range
+            continue
+        rx, ry = c * dx + s * dy, c * dy - s * dx  # centre in the robot frame
+        # Rays k with |k − bearing| <= half-width (in ray indices), widened by 1e-3 for rounding.
+        bearing = math.atan2(ry, rx) * per_rad
+        half = math.asin(min(1.0, r / dist)) * per_rad + 1e-3
+        lo, hi = ceil(bearing - half), floor(bearing + half)
+        if hi - lo >= n:
+            lo, hi = 0, n - 1
+        for k in range(lo, hi + 1):
+            k %= n
+            proj = rx * cos_k[k] + ry * sin_k[k]
+            disc = proj * proj - cc
+            if disc >= 0.0:
+                t = proj - sqrt(disc)
+                if 0.0 <= t < out[k]:
+                    out[k] = t
+    return out
 
 
 def nearest_obstacle_distance(pose: Pose2D, obstacles: tuple[Obstacle, ...]) -> float:
     """Distance from the robot centre to the nearest obstacle surface (inf without obstacles)."""
+    return _nearest_circle_distance(pose, [(o.x, o.y, o.r) for o in obstacles])
+
+
+def _nearest_circle_distance(pose: Pose2D, circles) -> float:
     best = math.inf
-    for o in obstacles:
-        best = min(best, math.hypot(o.x - pose.x, o.y - pose.y) - o.r)
+    px, py = pose[0], pose[1]
+    hypot = math.hypot
+    for ox, oy, r in circles:
+        d = hypot(ox - px, oy - py) - r
+        if d < best:
+            best = d
     return best
 
 
-def reward_terms(pose: Pose2D, scene: Scene, action: np.ndarray, previous_action: np.ndarray,
+def reward_terms(pose: Pose2D, scene: Scene, action, previous_action,
                  features: tuple[float, float, float] | None = None) -> dict[str, float]:
     """The five thesis 5.5 reward terms, each in [0, 1].
 
     The ball is excluded from the obstacle term (it would create a local minimum before the goal).
-    ``features`` may pass ``goal_features(pose, scene.goal)`` already computed by the caller.
+    ``features`` may pass ``goal_features(pose, scene.goal)`` already computed by the caller;
+    the actions may be arrays or lists of 6 floats.
     """
     d, alpha, beta = features if features is not None else goal_features(pose, scene.goal)
-    d_obs = nearest_obstacle_distance(pose, scene.obstacles)
-    if math.isinf(d_obs):
+    d_obs = _nearest_circle_distance(pose, scene.obstacle_circles)
+    if d_obs == math.inf:
         r_obs = 1.0
     else:
         d_obs = max(d_obs, 1e-6)
@@ -125,9 +172,13 @@ def reward_terms(pose: Pose2D, scene: Scene, action: np.ndarray, previous_action
 
 def _continuity(action, previous_action) -> float:
     """mean(exp(-3 |a(t) - a(t-1)|)) over the action components (plain floats: this is hot)."""
-    a = action.tolist() if isinstance(action, np.ndarray) else list(action)
-    b = previous_action.tolist() if isinstance(previous_action, np.ndarray) else list(previous_action)
-    return sum(math.exp(-3.0 * abs(x - y)) for x, y in zip(a, b)) / len(a)
+    a = action.tolist() if isinstance(action, np.ndarray) else action
+    b = previous_action.tolist() if isinstance(previous_action, np.ndarray) else previous_action
+    exp = math.exp
+    total = 0
+    for x, y in zip(a, b):
+        total += exp(-3.0 * abs(x - y))
+    return total / len(a)
 
 
 def weighted_reward(terms: dict[str, float], weights: dict[str, float]) -> float:
@@ -141,17 +192,33 @@ def is_success(pose: Pose2D, goal: Pose2D, config: NavTaskConfig,
 
 
 def observation(
-    believed: Pose2D, scene: Scene, previous_actions: tuple[np.ndarray, np.ndarray], config: NavTaskConfig,
+    believed: Pose2D, scene: Scene, previous_actions, config: NavTaskConfig,
     features: tuple[float, float, float] | None = None,
 ) -> np.ndarray:
     """17-D (or 53-D with rays) observation from the pose the robot *believes* it has.
 
     Layout: [tanh(d), sin α, cos α, sin β, cos β, a(t−1) (6), a(t−2) (6), tanh(rays) (36)].
+    ``previous_actions`` holds a(t−1) and a(t−2), each an array or a list of 6 floats.
     """
     d, alpha, beta = features if features is not None else goal_features(believed, scene.goal)
-    head = [math.tanh(d / config.distance_scale), math.sin(alpha), math.cos(alpha), math.sin(beta), math.cos(beta)]
-    values = head + previous_actions[0].tolist() + previous_actions[1].tolist()
+    a1, a2 = previous_actions
+    values = [math.tanh(d / config.distance_scale), math.sin(alpha), math.cos(alpha), math.sin(beta), math.cos(beta)]
+    values += a1.tolist() if isinstance(a1, np.ndarray) else a1
+    values += a2.tolist() if isinstance(a2, np.ndarray) else a2
     if config.obstacles:
-        rays = ray_distances(believed, scene.all_obstacles, int(config.n_rays), config.ray_range)
-        values += np.tanh(rays / config.ray_scale).tolist()
+        max_range, scale = config.ray_range, config.ray_scale
+        rays = ray_list(believed, scene.circles, int(config.n_rays), max_range)
+        miss = _tanh_of(max_range / scale)
+        tanh = math.tanh
+        values += [miss if t == max_range else tanh(t / scale) for t in rays]
     return np.array(values, dtype=np.float32)
+
+
+_TANH: dict[float, float] = {}
+
+
+def _tanh_of(x: float) -> float:
+    value = _TANH.get(x)
+    if value is None:
+        value = _TANH[x] = float(np.tanh(x))
+    return value
