@@ -43,6 +43,10 @@ START = {"freq": 1.0, "double_support_ratio": 0.05, "foot_distance": 0.1799, "fo
          "servo_kv": 4.0}
 
 
+# PyBullet walks at the Bit-Bots' ~2 Hz (conf/walk/pybullet.yaml): its own freq / height ranges.
+RANGE_OVERRIDES = {"pybullet": {"freq": (1.2, 2.4), "trunk_height": (0.36, 0.40), "double_support_ratio": (0.0, 0.3),
+                                "foot_rise": (0.04, 0.1)}}
+
 # Gains of footsim.backends.physics3d.TrunkStabilizer [rad per rad of trunk error]; hand scans
 # on MuJoCo: hip roll 0.3-0.5 helps the lateral sequences, pitch gains alone do not.
 STABILIZER_RANGES = {"hip_roll": (0.0, 1.2), "hip_pitch": (-0.5, 1.0), "ankle_roll": (-0.5, 0.5), "ankle_pitch": (-0.5, 0.5)}
@@ -90,13 +94,18 @@ def main(argv: list[str]) -> None:
 
     def objective(trial):
         walk = dict(base, **FIXED)
-        for key, (lo, hi) in RANGES.items():
+        for key, (lo, hi) in dict(RANGES, **RANGE_OVERRIDES.get(name, {})).items():
             walk[key] = trial.suggest_float(key, lo, hi)
-        options = {"physics_dt": trial.suggest_categorical("physics_dt", [0.005, 0.01]), "control_dt": 0.01,
-                   "torsional_friction": trial.suggest_float("torsional_friction", 0.02, 0.1, log=True),
-                   "servo_kp_scale": trial.suggest_float("servo_kp_scale", 1.5, 3.0),
-                   "servo_damping_scale": trial.suggest_float("servo_damping_scale", 0.2, 0.6),
-                   "servo_kv": trial.suggest_float("servo_kv", 1.0, 8.0)}
+        if name == "pybullet":  # Bullet's motor and contact knobs (conf/backend/pybullet.yaml)
+            options = {"position_gain_scale": trial.suggest_float("position_gain_scale", 2.0, 12.0),
+                       "velocity_gain": trial.suggest_float("velocity_gain", 0.3, 2.0),
+                       "spinning_friction": trial.suggest_float("spinning_friction", 0.02, 0.3, log=True)}
+        else:  # the MuJoCo model options shared by mujoco and dm_control
+            options = {"physics_dt": trial.suggest_categorical("physics_dt", [0.005, 0.01]), "control_dt": 0.01,
+                       "torsional_friction": trial.suggest_float("torsional_friction", 0.02, 0.1, log=True),
+                       "servo_kp_scale": trial.suggest_float("servo_kp_scale", 1.5, 3.0),
+                       "servo_damping_scale": trial.suggest_float("servo_damping_scale", 0.2, 0.6),
+                       "servo_kv": trial.suggest_float("servo_kv", 1.0, 8.0)}
         if "stabilizer" in args:  # IMU feedback gains of the shared driver (TrunkStabilizer)
             options["stabilizer"] = {g: trial.suggest_float(f"stab_{g}", lo, hi) for g, (lo, hi) in STABILIZER_RANGES.items()}
         cost, detail = evaluate(name, walk, options, commanded, sequences)
@@ -110,8 +119,9 @@ def main(argv: list[str]) -> None:
         if "enqueue_current" in args:  # the current conf/walk/<backend>.yaml + backend options
             backend_cfg = fconf.load_preset("backend", {"name": name})
             current = {k: base[k] for k in RANGES}
-            current.update({k: backend_cfg[k] for k in ("physics_dt", "torsional_friction", "servo_kp_scale",
-                                                        "servo_damping_scale", "servo_kv")})
+            keys = (("position_gain_scale", "velocity_gain", "spinning_friction") if name == "pybullet" else
+                    ("physics_dt", "torsional_friction", "servo_kp_scale", "servo_damping_scale", "servo_kv"))
+            current.update({k: backend_cfg[k] for k in keys})
             study.enqueue_trial(current, skip_if_exists=True)
         if "enqueue" in args:  # a JSON file of parameters to try early (e.g. a previous study's best)
             import json
