@@ -24,6 +24,25 @@ _ZERO_ACTION = [0.0] * 6  # never mutated: actions are fresh lists
 isfinite = math.isfinite
 
 
+class DeferredGenerator:
+    """``np.random.default_rng(seed)``, created when first used (attribute access is forwarded)."""
+
+    __slots__ = ("seed", "_generator")
+
+    def __init__(self, seed: int):
+        self.seed = seed
+        self._generator: np.random.Generator | None = None
+
+    @property
+    def generator(self) -> np.random.Generator:
+        if self._generator is None:
+            self._generator = np.random.default_rng(self.seed)
+        return self._generator
+
+    def __getattr__(self, name: str):
+        return getattr(self.generator, name)
+
+
 class FootstepEnv(gym.Env):
     """Footstep navigation to a goal pose (thesis chapter 5) on any footsim backend.
 
@@ -111,9 +130,13 @@ class FootstepEnv(gym.Env):
         else:
             self.scene = self.sampler.sample(self.np_random)
         # Independent streams so that e.g. switching noise off leaves scene sampling unchanged.
-        self._noise_rng = np.random.default_rng(int(self.np_random.integers(2**63)))
-        backend_rng = np.random.default_rng(int(self.np_random.integers(2**63)))
-        self._random_rng = np.random.default_rng(int(self.np_random.integers(2**63)))
+        # Seeding a generator costs more than a 2D step and most episodes never draw from
+        # some of them, so they are created on first use (same seeds, same streams).
+        self._noise_rng = DeferredGenerator(int(self.np_random.integers(2**63)))
+        backend_seed = int(self.np_random.integers(2**63))
+        backend_rng = (DeferredGenerator(backend_seed) if getattr(self.backend, "deferred_rng", False)
+                       else np.random.default_rng(backend_seed))
+        self._random_rng = DeferredGenerator(int(self.np_random.integers(2**63)))
         self._randomization = {}
         if self.randomizer.active:
             self._randomization = self.randomizer.episode(self._random_rng)
@@ -198,7 +221,7 @@ class FootstepEnv(gym.Env):
             "outcome": self._outcome,
             "time_s": self._time,
             "steps": self._steps,
-            "reward_terms": terms.copy(),
+            "reward_terms": terms,  # a fresh dict every step
         }
         if self.randomizer.active:
             info["randomization"] = dict(self._randomization)

@@ -74,5 +74,19 @@ class Pose2D(NamedTuple):
 
 def mean_pose(a: Pose2D, b: Pose2D) -> Pose2D:
     """Midpoint of two poses; heading is the circular mean (the bisector of the two headings)."""
-    half = 0.5 * wrap_angle(b.theta - a.theta)
-    return Pose2D(0.5 * (a.x + b.x), 0.5 * (a.y + b.y), wrap_angle(a.theta + half))
+    # = Pose2D(0.5 (a.x + b.x), 0.5 (a.y + b.y), wrap_angle(a.theta + 0.5 wrap_angle(b.theta - a.theta)))
+    # with both wraps inlined: the 2D backend calls this several times per step.
+    ax, ay, at = a
+    bx, by, bt = b
+    w = _fmod(bt - at + _PI, _TWO_PI)
+    if w <= 0.0:
+        w += _TWO_PI
+    w = _fmod(at + 0.5 * (w - _PI) + _PI, _TWO_PI)
+    if w <= 0.0:
+        w += _TWO_PI
+    return _new(Pose2D, (0.5 * (ax + bx), 0.5 * (ay + by), w - _PI))
+
+
+_new = tuple.__new__
+_PI = math.pi
+_fmod = math.fmod

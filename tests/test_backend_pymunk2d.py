@@ -191,3 +191,34 @@ def test_ray_special_cases():
     cfg = nav.NavTaskConfig(obstacles=True, ray_scale=2.0)
     obs = nav.observation(pose, Scene(Pose2D(1, 0, 0), (behind,)), ([0.0] * 6, [0.0] * 6), cfg)
     assert obs[17 + 18] == pytest.approx(math.tanh(0.9), abs=1e-6) and obs[17] == pytest.approx(math.tanh(2.5), abs=1e-6)
+
+
+def test_unrolled_overlap_band_matches_the_axis_loop():
+    from footsim.walk.footsteps import _overlap_band_y, _overlap_band_y_reference
+
+    rng = np.random.default_rng(7)
+    special = [0.0, math.pi / 2, -math.pi / 2, math.pi, 1e-13, 0.764, -0.764]
+    for i in range(20000):
+        theta = rng.uniform(-3.5, 3.5) if i % 4 else special[i % len(special)]
+        x, hl, hw = rng.uniform(-0.4, 0.4), rng.uniform(0.05, 0.1), rng.uniform(0.03, 0.07)
+        assert _overlap_band_y(x, theta, hl, hw) == _overlap_band_y_reference(x, theta, hl, hw)
+
+
+def test_scene_uniform_draw_is_numpys_uniform():
+    from footsim.tasks.scenes import uniform
+
+    a, b = np.random.default_rng(11), np.random.default_rng(11)
+    for i in range(3000):
+        low, high = [(0.1, 0.3), (-2.0, 5.0), (1e-4, 1e-3)][i % 3]
+        assert uniform(a, low, high) == b.uniform(low, high)
+        if i % 5 == 0:  # interleaved with other draws, as in the sampler
+            np.testing.assert_array_equal(a.normal(0.0, 0.5, size=2), b.normal(0.0, 0.5, size=2))
+
+
+def test_deferred_generator_is_the_seeded_generator():
+    from footsim.env import DeferredGenerator
+
+    lazy, eager = DeferredGenerator(1234), np.random.default_rng(1234)
+    assert lazy._generator is None  # nothing created until first use
+    np.testing.assert_array_equal(lazy.normal(0.0, 1.0, 3), eager.normal(0.0, 1.0, 3))
+    assert lazy.random() == eager.random() and lazy.uniform(-1, 2) == eager.uniform(-1, 2)

@@ -13,6 +13,7 @@ demand.  The navigation pose is the mean of the two feet.
 from __future__ import annotations
 
 import math
+from dataclasses import fields
 
 import numpy as np
 import pymunk
@@ -54,11 +55,19 @@ def box_hits_circles(x: float, y: float, theta: float, half_length: float, half_
     return False
 
 
+# ``execute`` builds StepResult positionally (a hot path): make sure the field order is the one used.
+assert [f.name for f in fields(StepResult)] == [
+    "pose", "duration_s", "feet", "executed", "fell", "collided", "sim_error", "info"], "StepResult fields changed"
+
+
 class Pymunk2DBackend(Backend):
     name = "pymunk"
     kind = "2d"
     capabilities = frozenset({"footstep_noise_x", "footstep_noise_y", "footstep_noise_theta", "walk_freq_scale"})
     collision_ends_episode = True
+    #: ``reset`` may be given an rng that is only created when first drawn from (the env's
+    #: ``DeferredGenerator``): this backend draws only with execution noise or an execution model.
+    deferred_rng = True
 
     def __init__(self, robot: RobotSpec, walk: WalkParams, collision_ends_episode: bool = True,
                  execution_model: str | None = None, execution_noise: bool = True, execution_falls: bool = False,
@@ -83,7 +92,7 @@ class Pymunk2DBackend(Backend):
         # an obstacle can't touch it.
         self._reach = max(math.hypot(*self._foot_half), math.hypot(*self._trunk_half)) * (1.0 + 1e-9) + 1e-9
         self._space: pymunk.Space | None = None
-        self._obstacles: list[tuple[float, float, float]] = []
+        self._extents: list[tuple] = []
         self.feet: FeetState | None = None
         self.history: list[tuple[Side, Pose2D]] = []
         self.nav_history: list[Pose2D] = []
@@ -114,7 +123,8 @@ class Pymunk2DBackend(Backend):
         self.scene = scene
         self._rng = rng
         self._space = None
-        self._obstacles = [(o.x, o.y, o.r) for o in scene.all_obstacles]
+        # per circle: its bounding box (broad phase) and (x, y, r)
+        self._extents = [(x - r, x + r, y - r, y + r, (x, y, r)) for x, y, r in scene.circles]
         self.feet = self.geometry.initial_feet()
         nav = self.feet.nav_pose
         self.history = [(Side.LEFT, self.feet.left), (Side.RIGHT, self.feet.right)]
@@ -142,29 +152,23 @@ class Pymunk2DBackend(Backend):
         return self._space
 
     def execute(self, double_step: DoubleStep) -> StepResult:
-        if self.feet is None:
-            raise RuntimeError("backend pymunk: execute() before reset()")
         before = self.feet
-        noisy = self._noise_sigma[0] or self._noise_sigma[1] or self._noise_sigma[2]
+        if before is None:
+            raise RuntimeError("backend pymunk: execute() before reset()")
+        sigma = self._noise_sigma
         after_first, after_second, executed, n_interfered = self.geometry.execute(
-            before, double_step, self._perturb if noisy else None)
-        collided = bool(self._obstacles) and self._double_step_collides(before, after_first, after_second)
+            before, double_step, self._perturb if (sigma[0] or sigma[1] or sigma[2]) else None)
+        collided = bool(self._extents) and self._double_step_collides(before, after_first, after_second)
         fell = False
         if self.execution_model is not None:
             after_first, after_second, fell = self._apply_execution_model(before, after_first, after_second, double_step)
         self.feet = after_second
         nav = mean_pose(after_second[0], after_second[1])
-        self.history += [(Side.RIGHT, after_first.right), (Side.LEFT, after_second.left)]
+        self.history += [(Side.RIGHT, after_first[1]), (Side.LEFT, after_second[0])]
         self.nav_history.append(nav)
-        return StepResult(
-            pose=nav,
-            duration_s=self._duration,
-            feet=after_second,
-            executed=executed,
-            fell=fell,
-            collided=collided,
-            info={"foot_interference": n_interfered},
-        )
+        # positional (checked against StepResult's fields at import): keywords cost a µs here
+        return StepResult(nav, self._duration, after_second, executed, fell, collided, None,
+                          {"foot_interference": n_interfered})
 
     def _apply_execution_model(self, before: FeetState, after_first: FeetState, after_second: FeetState,
                                double_step: DoubleStep) -> tuple[FeetState, FeetState, bool]:
@@ -197,12 +201,13 @@ class Pymunk2DBackend(Backend):
         touch any of them.
         """
         start_right, (mid_left, right), end_left = before[1], after_first, after_second[0]
-        xs = (start_right[0], right[0], mid_left[0], end_left[0])
-        ys = (start_right[1], right[1], mid_left[1], end_left[1])
+        x0, x1, x2, x3 = start_right[0], right[0], mid_left[0], end_left[0]
+        y0, y1, y2, y3 = start_right[1], right[1], mid_left[1], end_left[1]
         reach = self._reach
-        lo_x, hi_x, lo_y, hi_y = min(xs) - reach, max(xs) + reach, min(ys) - reach, max(ys) + reach
-        near = [o for o in self._obstacles
-                if o[0] + o[2] >= lo_x and o[0] - o[2] <= hi_x and o[1] + o[2] >= lo_y and o[1] - o[2] <= hi_y]
+        lo_x, hi_x = min(x0, x1, x2, x3) - reach, max(x0, x1, x2, x3) + reach
+        lo_y, hi_y = min(y0, y1, y2, y3) - reach, max(y0, y1, y2, y3) + reach
+        near = [circle for left, right_, bottom, top, circle in self._extents
+                if right_ >= lo_x and left <= hi_x and top >= lo_y and bottom <= hi_y]
         if not near:
             return False
         return (

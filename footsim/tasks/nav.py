@@ -103,19 +103,21 @@ def ray_list(pose: Pose2D, circles, n_rays: int, max_range: float) -> list[float
     c, s = math.cos(theta), math.sin(theta)
     per_rad = n / (2.0 * math.pi)  # ray index per radian of heading
     far = max_range + 1e-6 * (1.0 + max_range)
-    sqrt, floor, ceil = math.sqrt, math.floor, math.ceil
+    sqrt, floor, ceil, atan2, asin = math.sqrt, math.floor, math.ceil, math.atan2, math.asin
     for ox, oy, r in circles:
         dx, dy = ox - px, oy - py
-        cc = dx ** 2 + dy ** 2 - r * r  # |c|² − r²
+        d2 = dx * dx + dy * dy
+        cc = d2 - r * r  # |c|² − r²
         if cc <= 0.0:  # the origin is inside (or on) a circle: every ray reports 0
             return [0.0] * n
-        dist = sqrt(dx * dx + dy * dy)
+        dist = sqrt(d2)
         if dist - r > far:  # every point of the circle is beyond the range
             continue
         rx, ry = c * dx + s * dy, c * dy - s * dx  # centre in the robot frame
         # Rays k with |k − bearing| <= half-width (in ray indices), widened by 1e-3 for rounding.
-        bearing = math.atan2(ry, rx) * per_rad
-        half = math.asin(min(1.0, r / dist)) * per_rad + 1e-3
+        bearing = atan2(ry, rx) * per_rad
+        q = r / dist
+        half = asin(q if q < 1.0 else 1.0) * per_rad + 1e-3
         lo, hi = ceil(bearing - half), floor(bearing + half)
         if hi - lo >= n:
             lo, hi = 0, n - 1
@@ -182,7 +184,11 @@ def _continuity(action, previous_action) -> float:
 
 
 def weighted_reward(terms: dict[str, float], weights: dict[str, float]) -> float:
-    return float(sum(weights.get(k, 0.0) * v for k, v in terms.items()))
+    get = weights.get
+    total = 0  # the same left-to-right sum as sum(...): bit-identical rewards
+    for k, v in terms.items():
+        total += get(k, 0.0) * v
+    return float(total)
 
 
 def is_success(pose: Pose2D, goal: Pose2D, config: NavTaskConfig,

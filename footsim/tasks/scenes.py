@@ -151,12 +151,18 @@ class SceneSampler:
     def _obstacle_near(self, cx: float, cy: float, goal: Pose2D, rng: np.random.Generator) -> Obstacle:
         while True:
             dx, dy = rng.normal(0.0, self.obstacle_offset_sigma, size=2)
-            r = float(rng.uniform(self.obstacle_radius_min, self.obstacle_radius_max))
+            r = uniform(rng, self.obstacle_radius_min, self.obstacle_radius_max)
             x, y = cx + float(dx), cy + float(dy)
             clear_of_start = math.hypot(x, y) >= r + self.robot_radius
             clear_of_goal = math.hypot(x - goal.x, y - goal.y) >= r + self.robot_radius
             if clear_of_start and clear_of_goal:
                 return Obstacle(x, y, r)
+
+
+def uniform(rng: np.random.Generator, low: float, high: float) -> float:
+    """``float(rng.uniform(low, high))``, the same draw and value (numpy computes
+    ``low + (high - low) * rng.random()``) without the array machinery of a scalar call."""
+    return low + (high - low) * rng.random()
 
 
 def sample_scenes(sampler: SceneSampler, n: int, seed: int) -> list[Scene]:

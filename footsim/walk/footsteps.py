@@ -21,7 +21,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from footsim.geometry import Pose2D, mean_pose, wrap_angle
+from footsim.geometry import Pose2D, mean_pose
 
 
 class Side(str, Enum):
@@ -110,7 +110,8 @@ class DoubleStep(NamedTuple):
     def from_unit(cls, v: list[float], limits: StepLimits) -> "DoubleStep":
         """Scale 6 already validated and clipped values (see :func:`action_values`)."""
         lx, ly, lt = limits.x, limits.y, limits.theta
-        return cls(Footstep(v[0] * lx, v[1] * ly, v[2] * lt), Footstep(v[3] * lx, v[4] * ly, v[5] * lt))
+        return _new(cls, (_new(Footstep, (v[0] * lx, v[1] * ly, v[2] * lt)),
+                          _new(Footstep, (v[3] * lx, v[4] * ly, v[5] * lt))))
 
     @classmethod
     def from_array(cls, values) -> "DoubleStep":
@@ -147,7 +148,55 @@ def _overlap_band_y(x: float, theta: float, half_l: float, half_w: float) -> tup
     Separating-axis theorem on the four box axes: on axis n the boxes overlap iff
     |n·(x, y)| <= r_support(n) + r_flying(n), which bounds y linearly; the overlap set is the
     intersection of those bands (an interval), or None when some axis separates for every y.
+    (The four axes (1, 0), (0, 1), (c, s), (−s, c) written out: this runs on most env steps.)
     """
+    return _overlap_band_cs(x, math.cos(theta), math.sin(theta), half_l, half_w)
+
+
+def _overlap_band_cs(x: float, c: float, s: float, half_l: float, half_w: float) -> tuple[float, float] | None:
+    """:func:`_overlap_band_y` given ``c, s = cos(theta), sin(theta)``."""
+    ac, as_ = abs(c), abs(s)
+    # axis (1, 0): bounds x only
+    if abs(x) > half_l + half_l * ac + half_w * as_:
+        return None
+    # axis (0, 1): |y| <= reach
+    reach = half_w + half_l * as_ + half_w * ac
+    lo, hi = -reach, reach
+    # axis (c, s)
+    reach = half_l * ac + half_w * as_ + half_l * abs(c * c + s * s) + half_w * abs(-c * s + s * c)
+    if as_ < 1e-12:
+        if abs(c * x) > reach:
+            return None
+    else:
+        a, b = (-reach - c * x) / s, (reach - c * x) / s
+        if a > b:
+            a, b = b, a
+        if a > lo:
+            lo = a
+        if b < hi:
+            hi = b
+        if lo > hi:
+            return None
+    # axis (−s, c)
+    reach = half_l * as_ + half_w * ac + half_l * abs(-s * c + c * s) + half_w * abs(s * s + c * c)
+    if ac < 1e-12:
+        if abs(-s * x) > reach:
+            return None
+    else:
+        a, b = (-reach + s * x) / c, (reach + s * x) / c
+        if a > b:
+            a, b = b, a
+        if a > lo:
+            lo = a
+        if b < hi:
+            hi = b
+        if lo > hi:
+            return None
+    return lo, hi
+
+
+def _overlap_band_y_reference(x: float, theta: float, half_l: float, half_w: float) -> tuple[float, float] | None:
+    """:func:`_overlap_band_y` as a loop over the four axes (kept for the tests)."""
     c, s = math.cos(theta), math.sin(theta)
     lo, hi = -math.inf, math.inf
     for nx, ny in ((1.0, 0.0), (0.0, 1.0), (c, s), (-s, c)):
@@ -234,7 +283,12 @@ class FootstepGeometry:
         rest_y = self.foot_distance if left else -self.foot_distance
         if abs(rest_y + y) >= self._clear:  # farther apart than two circumradii: no overlap
             return x, y, theta, False
-        band = self._band(x, theta)
+        half_l, half_w = self._half_gapped
+        c, s = math.cos(theta), math.sin(theta)
+        # The band lies within |y| <= its (0, 1)-axis bound: outside that, no overlap either.
+        if abs(rest_y + y) >= half_w + half_l * abs(s) + half_w * abs(c):
+            return x, y, theta, False
+        band = _overlap_band_cs(x, c, s, half_l, half_w)
         interfered = band is not None and band[0] < rest_y + y < band[1]
         if interfered:  # the resting side of the band is clear (checked at construction)
             y = (band[1] if left else band[0]) - rest_y
@@ -248,23 +302,33 @@ class FootstepGeometry:
         step, feet after the second, executed DoubleStep, number of interfering steps)``.
         """
         # The right foot flies first (left support), then the left foot (right support).
+        # Plain floats and tuple.__new__ below: this runs on every 2D env step.
         first, second = double_step
-        left, right = feet
+        left = feet[0]
         x, y, theta, hit_first = self._land(False, first[0], first[1], first[2])
         right = _place(left, x, y - self.foot_distance, theta)
         if perturb is not None:
             right = perturb(right)
-        done_first = Footstep(x, y, theta)
+        done_first = _new(Footstep, (x, y, theta))
         x, y, theta, hit_second = self._land(True, second[0], second[1], second[2])
         left = _place(right, x, y + self.foot_distance, theta)
         if perturb is not None:
             left = perturb(left)
-        return (FeetState(feet[0], right), FeetState(left, right),
-                DoubleStep(done_first, Footstep(x, y, theta)), int(hit_first) + int(hit_second))
+        return (_new(FeetState, (feet[0], right)), _new(FeetState, (left, right)),
+                _new(DoubleStep, (done_first, _new(Footstep, (x, y, theta)))), int(hit_first) + int(hit_second))
+
+
+_new = tuple.__new__  # NamedTuple construction without the Python-level __new__
+_PI = math.pi
+_TWO_PI = 2.0 * math.pi
+_fmod, _cos, _sin = math.fmod, math.cos, math.sin
 
 
 def _place(support: Pose2D, x: float, y: float, theta: float) -> Pose2D:
-    """``support.compose(Pose2D(x, y, theta))`` without the intermediate tuple."""
+    """``support.compose(Pose2D(x, y, theta))`` without the intermediate tuple (same arithmetic)."""
     sx, sy, st = support
-    c, s = math.cos(st), math.sin(st)
-    return Pose2D(sx + c * x - s * y, sy + s * x + c * y, wrap_angle(st + theta))
+    c, s = _cos(st), _sin(st)
+    wrapped = _fmod(st + theta + _PI, _TWO_PI)  # wrap_angle(st + theta), inlined
+    if wrapped <= 0.0:
+        wrapped += _TWO_PI
+    return _new(Pose2D, (sx + c * x - s * y, sy + s * x + c * y, wrapped - _PI))
