@@ -75,3 +75,25 @@ def test_mujoco_hip_roll_feedback_reduces_roll_under_a_side_push():
             backend.close()
 
     assert max_roll(0.6) < max_roll(0.0)
+
+
+def test_step_result_reports_the_trunk_tilt():
+    """The driver reports the fused roll/pitch at the end of a double step and the largest tilt
+    seen during it, from its own checks of the base (independent check: the sim's base pose)."""
+    pytest.importorskip("mujoco")
+    from footsim.backends.physics3d import fused_roll_pitch
+    from footsim.geometry import Pose2D
+    from footsim.tasks.scenes import Scene
+    from footsim.walk.footsteps import DoubleStep
+    from footsim.walkcheck import make_backend
+
+    backend = make_backend("mujoco")
+    try:
+        backend.reset(Scene(goal=Pose2D(100.0, 0.0, 0.0)), np.random.default_rng(0))
+        result = backend.execute(DoubleStep.from_action(np.array([1.0, 0, 0, 1.0, 0, 0]), backend.robot.step_limits))
+        assert not result.fell
+        np.testing.assert_allclose(result.tilt, fused_roll_pitch(backend.sim.base_pose()[1]), atol=1e-12)
+        assert max(abs(result.tilt[0]), abs(result.tilt[1])) <= result.max_tilt < backend.fall_threshold
+        assert result.max_tilt > 0.01  # walking at max step does tilt the trunk
+    finally:
+        backend.close()

@@ -28,6 +28,8 @@ class StepResult:
     collided: bool = False
     sim_error: str | None = None  # why the simulation became invalid, if it did
     info: dict = field(default_factory=dict)
+    tilt: tuple[float, float] = (0.0, 0.0)  # fused (roll, pitch) of the base at the end [rad]; 0 in 2D
+    max_tilt: float = 0.0  # largest |roll| or |pitch| seen during the step [rad]; 0 in 2D
 
 
 @dataclass(frozen=True)

@@ -256,6 +256,7 @@ class Physics3DBackend(Backend):
         self._next_push = self._push_end = -1
         self._rng = np.random.default_rng(0)
         self.randomization_detail: dict[str, float] = {}  # directions drawn from the backend rng
+        self._tilt, self._max_tilt = (0.0, 0.0), 0.0  # fused (roll, pitch) at the last check; max this step
 
     # -- randomization --------------------------------------------------------------------
     @property
@@ -364,6 +365,7 @@ class Physics3DBackend(Backend):
             self._apply_sim_randomization(None)
         trajectory = self.engine.double_step(double_step)
         targets = trajectory.joint_targets
+        self._max_tilt = 0.0  # updated by every _status() check of this step
         fell = collided = False
         error = None
         ticks = 0
@@ -398,6 +400,7 @@ class Physics3DBackend(Backend):
         return StepResult(
             pose=pose, duration_s=ticks * self.control_dt, feet=trajectory.feet, executed=trajectory.executed,
             fell=fell, collided=collided, sim_error=error, info=info,
+            tilt=self._tilt if error is None else (0.0, 0.0), max_tilt=self._max_tilt if error is None else 0.0,
         )
 
     # -- truth ----------------------------------------------------------------------------
@@ -421,8 +424,11 @@ class Physics3DBackend(Backend):
         if abs(position).max() > self.out_of_bounds:
             return f"base left the ±{self.out_of_bounds} m bounds", False
         if rotation[2, 2] < 0.0:
+            self._tilt, self._max_tilt = (math.pi / 2, math.pi / 2), math.pi / 2
             return None, True
         roll, pitch = fused_roll_pitch(rotation)
+        self._tilt = (roll, pitch)
+        self._max_tilt = max(self._max_tilt, abs(roll), abs(pitch))
         return None, abs(roll) > self.fall_threshold or abs(pitch) > self.fall_threshold
 
     def stop_walking(self) -> float:
