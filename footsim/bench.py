@@ -1,4 +1,4 @@
-"""``footsim-bench [what=env2d,walk,...] [repeats=5] [steps=20000]``: speed benchmarks.
+"""``footsim-bench [what=env2d,walk,...] [repeats=5] [steps=20000] [wrapped=false]``: speed benchmarks.
 
 Prints markdown tables (medians over ``repeats``) for ``docs/BENCHMARKS.md``.  Each
 benchmark runs in this process on one core.  Rates are given per CPU second of this process
@@ -21,27 +21,46 @@ def _machine() -> str:
     return f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}"
 
 
-def bench_env2d(steps: int = 20000, repeats: int = 5) -> list[dict]:
-    """2D env steps/s with random actions (episodes reset as they end), without and with rays."""
+def bench_env2d(steps: int = 20000, repeats: int = 5, wrapped: bool = False) -> list[dict]:
+    """2D env steps/s with random actions (episodes reset as they end), without and with rays.
+
+    Measures the raw ``FootstepEnv``; ``wrapped=True`` adds rows for the env built by
+    ``gymnasium.make("footsim/FootstepNav-v0")`` (its passive checker and order-enforcing /
+    episode-statistics wrappers run on every step)."""
     from footsim.env import FootstepEnv
 
+    def make_raw(**kwargs):
+        return FootstepEnv(**kwargs)
+
+    def make_gym(**kwargs):
+        import gymnasium as gym
+
+        import footsim  # noqa: F401  (registers the env)
+
+        return gym.make("footsim/FootstepNav-v0", **kwargs)
+
+    variants = [("", make_raw)] + ([(" [gymnasium.make]", make_gym)] if wrapped else [])
     rows = []
-    for label, kwargs in (("pymunk, nav (17-D, no rays)", {}), ("pymunk, nav_obstacles (53-D, 36 rays)", {"obstacles": True})):
-        env = FootstepEnv(**kwargs)
-        rates = []
-        for r in range(repeats):
-            rng = np.random.default_rng(r)
-            actions = rng.uniform(-1, 1, size=(steps, 6))
-            env.reset(seed=r)
-            start, start_cpu = time.perf_counter(), time.process_time()
-            for a in actions:
-                _, _, terminated, truncated, _ = env.step(a)
-                if terminated or truncated:
-                    env.reset()
-            rates.append((steps / (time.process_time() - start_cpu), steps / (time.perf_counter() - start)))
-        cpu = [r[0] for r in rates]
-        rows.append({"benchmark": label, "median env steps/s (CPU time)": statistics.median(cpu),
-                     "min": min(cpu), "max": max(cpu), "median env steps/s (wall)": statistics.median(r[1] for r in rates)})
+    for suffix, make in variants:
+        for label, kwargs in (("pymunk, nav (17-D, no rays)", {}),
+                              ("pymunk, nav_obstacles (53-D, 36 rays)", {"obstacles": True})):
+            env = make(**kwargs)
+            rates = []
+            for r in range(repeats):
+                rng = np.random.default_rng(r)
+                actions = rng.uniform(-1, 1, size=(steps, 6))
+                env.reset(seed=r)
+                start, start_cpu = time.perf_counter(), time.process_time()
+                for a in actions:
+                    _, _, terminated, truncated, _ = env.step(a)
+                    if terminated or truncated:
+                        env.reset()
+                rates.append((steps / (time.process_time() - start_cpu), steps / (time.perf_counter() - start)))
+            env.close()
+            cpu = [r[0] for r in rates]
+            rows.append({"benchmark": label + suffix, "median env steps/s (CPU time)": statistics.median(cpu),
+                         "min": min(cpu), "max": max(cpu),
+                         "median env steps/s (wall)": statistics.median(r[1] for r in rates)})
     return rows
 
 
@@ -89,7 +108,8 @@ def main(argv: list[str] | None = None) -> None:
     from footsim.tasks.scenes import parse_kv_args
 
     args = parse_kv_args(sys.argv[1:] if argv is None else argv,
-                         {"what": "env2d,walk", "repeats": "5", "steps": "20000"}, "footsim-bench")
+                         {"what": "env2d,walk", "repeats": "5", "steps": "20000", "wrapped": "false"},
+                         "footsim-bench")
     names = [n for n in args["what"].split(",") if n]
     unknown = [n for n in names if n not in BENCHMARKS]
     if unknown:
@@ -100,6 +120,7 @@ def main(argv: list[str] | None = None) -> None:
         kwargs = {"repeats": repeats}
         if name == "env2d":
             kwargs["steps"] = int(args["steps"])
+            kwargs["wrapped"] = str(args["wrapped"]).lower() in ("1", "true", "yes")
         try:
             rows = BENCHMARKS[name](**kwargs)
         except ImportError as err:

@@ -86,7 +86,19 @@ def ray_distances(pose: Pose2D, obstacles: tuple[Obstacle, ...], n_rays: int, ma
 
 
 def ray_list(pose: Pose2D, circles, n_rays: int, max_range: float) -> list[float]:
-    """:func:`ray_distances` as a list, for circles given as ``(x, y, r)`` tuples.
+    """:func:`ray_distances` as a list, for circles given as ``(x, y, r)`` tuples."""
+    out = [max_range] * n_rays
+    hits = ray_hits(pose, circles, n_rays, max_range)
+    if hits is None:
+        return [0.0] * n_rays
+    for k, t in hits.items():
+        out[k] = t
+    return out
+
+
+def ray_hits(pose: Pose2D, circles, n_rays: int, max_range: float) -> dict[int, float] | None:
+    """The rays that hit a circle closer than ``max_range``: ``{ray index: distance}``; ``None``
+    when the origin is inside a circle (every ray reports 0).
 
     Closed form per ray and circle: with ``u`` the ray's unit direction and ``c`` the circle's
     centre relative to the origin, ``|t·u − c|² = r²`` gives ``t = u·c − sqrt((u·c)² − (|c|² − r²))``.
@@ -95,21 +107,22 @@ def ray_list(pose: Pose2D, circles, n_rays: int, max_range: float) -> list[float
     circles whose nearest point is beyond ``max_range`` are skipped.
     """
     n = n_rays
-    out = [max_range] * n
+    hits: dict[int, float] = {}
     if not circles:
-        return out
+        return hits
     cos_k, sin_k = _ray_directions(n)
     px, py, theta = pose
     c, s = math.cos(theta), math.sin(theta)
     per_rad = n / (2.0 * math.pi)  # ray index per radian of heading
     far = max_range + 1e-6 * (1.0 + max_range)
     sqrt, floor, ceil, atan2, asin = math.sqrt, math.floor, math.ceil, math.atan2, math.asin
+    get = hits.get
     for ox, oy, r in circles:
         dx, dy = ox - px, oy - py
         d2 = dx * dx + dy * dy
         cc = d2 - r * r  # |c|² − r²
-        if cc <= 0.0:  # the origin is inside (or on) a circle: every ray reports 0
-            return [0.0] * n
+        if cc <= 0.0:  # the origin is inside (or on) a circle
+            return None
         dist = sqrt(d2)
         if dist - r > far:  # every point of the circle is beyond the range
             continue
@@ -127,9 +140,9 @@ def ray_list(pose: Pose2D, circles, n_rays: int, max_range: float) -> list[float
             disc = proj * proj - cc
             if disc >= 0.0:
                 t = proj - sqrt(disc)
-                if 0.0 <= t < out[k]:
-                    out[k] = t
-    return out
+                if 0.0 <= t < get(k, max_range):
+                    hits[k] = t
+    return hits
 
 
 def nearest_obstacle_distance(pose: Pose2D, obstacles: tuple[Obstacle, ...]) -> float:
@@ -212,19 +225,25 @@ def observation(
     values += a1.tolist() if isinstance(a1, np.ndarray) else a1
     values += a2.tolist() if isinstance(a2, np.ndarray) else a2
     if config.obstacles:
-        max_range, scale = config.ray_range, config.ray_scale
-        rays = ray_list(believed, scene.circles, int(config.n_rays), max_range)
-        miss = _tanh_of(max_range / scale)
-        tanh = math.tanh
-        values += [miss if t == max_range else tanh(t / scale) for t in rays]
+        n, max_range, scale = int(config.n_rays), config.ray_range, config.ray_scale
+        hits = ray_hits(believed, scene.circles, n, max_range)
+        if hits is None:  # inside a circle: every ray reports 0
+            values += [0.0] * n
+        else:
+            start = len(values)
+            values += _misses(n, max_range / scale)
+            tanh = math.tanh
+            for k, t in hits.items():
+                values[start + k] = tanh(t / scale)
     return np.array(values, dtype=np.float32)
 
 
-_TANH: dict[float, float] = {}
+_MISSES: dict[tuple[int, float], list[float]] = {}
 
 
-def _tanh_of(x: float) -> float:
-    value = _TANH.get(x)
+def _misses(n: int, x: float) -> list[float]:
+    """``n`` copies of ``tanh(x)`` (the observation of rays that hit nothing), cached."""
+    value = _MISSES.get((n, x))
     if value is None:
-        value = _TANH[x] = float(np.tanh(x))
+        value = _MISSES[(n, x)] = [float(np.tanh(x))] * n
     return value

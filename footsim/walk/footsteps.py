@@ -71,7 +71,7 @@ class Footstep(NamedTuple):
     theta: float = 0.0
 
 
-_isfinite = math.isfinite
+_INF = math.inf
 
 
 def action_values(action) -> list[float]:
@@ -87,7 +87,7 @@ def action_values(action) -> list[float]:
             raise ValueError(f"a double-step action has 6 values, got shape {np.shape(action)}")
         values = a.tolist()
     for x in values:
-        if not _isfinite(x):
+        if not -_INF < x < _INF:  # NaN compares false
             raise ValueError(f"action contains NaN or inf: {values}")
     return [-1.0 if x < -1.0 else 1.0 if x > 1.0 else x for x in values]
 
