@@ -17,6 +17,8 @@ from footsim.tasks.scenes import Obstacle, Scene
 #: Thesis 5.5 weight sets (each sums to 1).
 WEIGHTS_NO_OBSTACLES = {"distance": 0.3, "angle": 0.3, "orientation": 0.2, "obstacle": 0.0, "continuity": 0.2}
 WEIGHTS_OBSTACLES = {"distance": 0.25, "angle": 0.25, "orientation": 0.15, "obstacle": 0.2, "continuity": 0.15}
+#: The thesis's five terms plus "stability" (3D option: exp(-max trunk tilt / stability_scale)).
+REWARD_TERMS = frozenset(WEIGHTS_NO_OBSTACLES) | {"stability"}
 
 
 @dataclass(frozen=True)
@@ -30,9 +32,14 @@ class NavTaskConfig:
     ray_range: float = 5.0  # a ray that hits nothing reports this [m]
     ray_scale: float = 1.0  # observation: tanh(ray / ray_scale)
     reward_weights: dict = field(default_factory=lambda: dict(WEIGHTS_NO_OBSTACLES))
+    # Options beyond the thesis (off by default; docs/RESULTS.md measures their effect):
+    observe_imu: bool = False  # append tanh(roll / imu_scale), tanh(pitch / ·), tanh(max tilt / ·)
+    imu_scale: float = 0.35  # [rad]
+    stability_scale: float = 0.2  # [rad] reward term "stability" = exp(-max tilt / this)
 
     def __post_init__(self) -> None:
-        for key in ("success_distance", "success_angle", "distance_scale", "ray_range", "ray_scale"):
+        for key in ("success_distance", "success_angle", "distance_scale", "ray_range", "ray_scale", "imu_scale",
+                    "stability_scale"):
             value = getattr(self, key)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"task.{key} must be a positive number, got {value!r}")
@@ -40,16 +47,21 @@ class NavTaskConfig:
             raise ValueError(f"task.max_steps must be > 0, got {self.max_steps!r}")
         if int(self.n_rays) <= 0:
             raise ValueError(f"task.n_rays must be > 0, got {self.n_rays!r}")
-        unknown = set(self.reward_weights) - set(WEIGHTS_NO_OBSTACLES)
+        unknown = set(self.reward_weights) - REWARD_TERMS
         if unknown:
-            raise ValueError(f"task.reward_weights: unknown term(s) {sorted(unknown)}; valid: {sorted(WEIGHTS_NO_OBSTACLES)}")
+            raise ValueError(f"task.reward_weights: unknown term(s) {sorted(unknown)}; valid: {sorted(REWARD_TERMS)}")
         for key, value in self.reward_weights.items():
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"task.reward_weights.{key} must be >= 0, got {value!r}")
 
     @property
     def observation_size(self) -> int:
-        return 17 + (int(self.n_rays) if self.obstacles else 0)
+        return 17 + (int(self.n_rays) if self.obstacles else 0) + (3 if self.observe_imu else 0)
+
+    @property
+    def uses_tilt(self) -> bool:
+        """Whether the observation or the reward needs the backend's trunk tilt."""
+        return self.observe_imu or self.reward_weights.get("stability", 0.0) > 0.0
 
 
 def goal_features(pose: Pose2D, goal: Pose2D) -> tuple[float, float, float]:
@@ -57,11 +69,26 @@ def goal_features(pose: Pose2D, goal: Pose2D) -> tuple[float, float, float]:
 
     α: how far the robot must turn to take the goal's heading; β: how far to face the goal.
     """
-    dx, dy = goal.x - pose.x, goal.y - pose.y
+    px, py, pt = pose
+    gx, gy, gt = goal
+    dx, dy = gx - px, gy - py
     d = math.hypot(dx, dy)
-    alpha = wrap_angle(goal.theta - pose.theta)
-    beta = wrap_angle(math.atan2(dy, dx) - pose.theta) if d > 0.0 else 0.0
+    # alpha = wrap_angle(gt - pt), beta = wrap_angle(atan2(dy, dx) - pt), the wraps inlined
+    alpha = _fmod(gt - pt + _PI, _TWO_PI)
+    if alpha <= 0.0:
+        alpha += _TWO_PI
+    alpha -= _PI
+    if d > 0.0:
+        beta = _fmod(math.atan2(dy, dx) - pt + _PI, _TWO_PI)
+        if beta <= 0.0:
+            beta += _TWO_PI
+        beta -= _PI
+    else:
+        beta = 0.0
     return d, alpha, beta
+
+
+_PI, _TWO_PI, _fmod = math.pi, 2.0 * math.pi, math.fmod
 
 
 _RAY_DIRECTIONS: dict[int, tuple[list[float], list[float]]] = {}
@@ -162,8 +189,10 @@ def _nearest_circle_distance(pose: Pose2D, circles) -> float:
 
 
 def reward_terms(pose: Pose2D, scene: Scene, action, previous_action,
-                 features: tuple[float, float, float] | None = None) -> dict[str, float]:
-    """The five thesis 5.5 reward terms, each in [0, 1].
+                 features: tuple[float, float, float] | None = None,
+                 max_tilt: float | None = None, stability_scale: float = 0.2) -> dict[str, float]:
+    """The five thesis 5.5 reward terms, each in [0, 1]; with ``max_tilt`` (the largest trunk
+    roll or pitch during the step, 3D) also ``stability = exp(-max_tilt / stability_scale)``.
 
     The ball is excluded from the obstacle term (it would create a local minimum before the goal).
     ``features`` may pass ``goal_features(pose, scene.goal)`` already computed by the caller;
@@ -176,13 +205,16 @@ def reward_terms(pose: Pose2D, scene: Scene, action, previous_action,
     else:
         d_obs = max(d_obs, 1e-6)
         r_obs = math.exp(-0.0015 * (1.0 / d_obs) ** 2)
-    return {
+    terms = {
         "distance": math.exp(-0.5 * d),
         "angle": math.exp(-5.0 * d) * math.exp(-abs(alpha)),
         "orientation": 1.0 if d < 0.1 else math.exp(-abs(beta)),
         "obstacle": r_obs,
         "continuity": _continuity(action, previous_action),
     }
+    if max_tilt is not None:
+        terms["stability"] = math.exp(-abs(max_tilt) / stability_scale)
+    return terms
 
 
 def _continuity(action, previous_action) -> float:
@@ -212,11 +244,12 @@ def is_success(pose: Pose2D, goal: Pose2D, config: NavTaskConfig,
 
 def observation(
     believed: Pose2D, scene: Scene, previous_actions, config: NavTaskConfig,
-    features: tuple[float, float, float] | None = None,
+    features: tuple[float, float, float] | None = None, tilt: tuple[float, float, float] = (0.0, 0.0, 0.0),
 ) -> np.ndarray:
     """17-D (or 53-D with rays) observation from the pose the robot *believes* it has.
 
-    Layout: [tanh(d), sin α, cos α, sin β, cos β, a(t−1) (6), a(t−2) (6), tanh(rays) (36)].
+    Layout: [tanh(d), sin α, cos α, sin β, cos β, a(t−1) (6), a(t−2) (6), tanh(rays) (36)], and
+    with ``config.observe_imu`` then tanh(· / imu_scale) of ``tilt`` = (roll, pitch, max tilt).
     ``previous_actions`` holds a(t−1) and a(t−2), each an array or a list of 6 floats.
     """
     d, alpha, beta = features if features is not None else goal_features(believed, scene.goal)
@@ -235,6 +268,9 @@ def observation(
             tanh = math.tanh
             for k, t in hits.items():
                 values[start + k] = tanh(t / scale)
+    if config.observe_imu:
+        scale = config.imu_scale
+        values += [math.tanh(tilt[0] / scale), math.tanh(tilt[1] / scale), math.tanh(tilt[2] / scale)]
     return np.array(values, dtype=np.float32)
 
 
