@@ -81,11 +81,14 @@ def build_task(task_cfg: Mapping):
         cfg["success_angle"] = math.radians(_number(cfg, "success_angle_deg", "task"))
         cfg.pop("success_angle_deg")
     known = {"max_steps", "success_distance", "success_angle", "distance_scale", "n_rays", "ray_range",
-             "ray_scale", "reward_weights"}
+             "ray_scale", "reward_weights", "observe_imu", "imu_scale", "stability_scale"}
     unknown = sorted(set(cfg) - known)
     if unknown:
         raise ValueError(f"task: unknown key(s) {unknown}; valid: {sorted(known | {'name', 'obstacles', 'scenes', 'success_angle_deg'})}")
-    for key in known - {"reward_weights", "max_steps", "n_rays"}:
+    if "observe_imu" in cfg:
+        if not isinstance(cfg["observe_imu"], bool):
+            raise ValueError(f"task.observe_imu must be true or false, got {cfg['observe_imu']!r}")
+    for key in known - {"reward_weights", "max_steps", "n_rays", "observe_imu"}:
         if key in cfg:
             cfg[key] = _number(cfg, key, "task")
     for key in ("max_steps", "n_rays"):

@@ -20,6 +20,7 @@ from footsim.tasks.scenes import Scene
 from footsim.walk.footsteps import DoubleStep, action_values
 
 OUTCOMES = ("running", "success", "timeout", "fall", "collision", "sim_error")
+_ZERO_TILT = (0.0, 0.0, 0.0)
 _ZERO_ACTION = [0.0] * 6  # never mutated: actions are fresh lists
 isfinite = math.isfinite
 
@@ -112,6 +113,7 @@ class FootstepEnv(gym.Env):
 
         self.scene: Scene | None = None
         self._prev_actions = (_ZERO_ACTION, _ZERO_ACTION)  # a(t-1), a(t-2) as lists of 6 floats
+        self._tilt = _ZERO_TILT  # (roll, pitch, max tilt) of the last step, for task.observe_imu
         self._steps = 0
         self._time = 0.0
         self._pose = Pose2D()
@@ -143,6 +145,7 @@ class FootstepEnv(gym.Env):
             self.backend.apply_randomization(self._randomization)
         self._pose = self.backend.reset(self.scene, backend_rng)
         self._prev_actions = (_ZERO_ACTION, _ZERO_ACTION)
+        self._tilt = _ZERO_TILT  # standing after reset
         self._steps = 0
         self._time = 0.0
         self._outcome = "running"
@@ -173,7 +176,12 @@ class FootstepEnv(gym.Env):
             result.sim_error = result.sim_error or "non-finite pose"
         task, scene = self.task, self.scene
         features = nav.goal_features(self._pose, scene.goal)
-        terms = nav.reward_terms(self._pose, scene, action, self._prev_actions[0], features)
+        if task.uses_tilt:  # 3D options: IMU in the observation, stability in the reward
+            self._tilt = (*result.tilt, result.max_tilt)
+            terms = nav.reward_terms(self._pose, scene, action, self._prev_actions[0], features,
+                                     max_tilt=result.max_tilt, stability_scale=task.stability_scale)
+        else:
+            terms = nav.reward_terms(self._pose, scene, action, self._prev_actions[0], features)
         reward = nav.weighted_reward(terms, task.reward_weights)
 
         if result.sim_error is not None:
@@ -192,7 +200,7 @@ class FootstepEnv(gym.Env):
         self._prev_actions = (action, self._prev_actions[0])
         self._believed = self.noise.believe(self._pose, self._noise_rng)
         obs = nav.observation(self._believed, scene, self._prev_actions, task,
-                              features if self._believed is self._pose else None)
+                              features if self._believed is self._pose else None, self._tilt)
         info = self._info(terms, result)
         return obs, float(reward), terminated, truncated, info
 

@@ -7,7 +7,9 @@ distribution and the network shapes must match.  One observation change is allow
 without obstacles (17-D) can seed a run with obstacles (53-D), whose observation starts with
 the same 17 values; the 36 ray inputs then start with zero weights, so the child begins as
 the parent's goal-reaching policy and learns to use the rays (a curriculum that avoids the
-"stand still, never collide" local optimum of the obstacle task).
+"stand still, never collide" local optimum of the obstacle task).  The same holds for the
+3 IMU inputs of ``task.observe_imu`` (17 → 20, or 17 → 56 with rays): a 2D policy seeds a 3D
+run that observes its trunk tilt.
 """
 
 from __future__ import annotations

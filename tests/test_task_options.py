@@ -1,0 +1,76 @@
+"""Task options beyond the thesis: IMU tilt in the observation, a stability reward term."""
+
+import math
+
+import numpy as np
+import pytest
+
+from footsim import config as fconf
+from footsim.env import FootstepEnv
+from footsim.geometry import Pose2D
+from footsim.tasks import nav
+from footsim.tasks.nav import NavTaskConfig
+from footsim.tasks.scenes import Scene
+
+
+def test_stability_term_is_exp_of_the_max_tilt():
+    scene = Scene(goal=Pose2D(1.0, 0.0, 0.0))
+    a = [0.0] * 6
+    plain = nav.reward_terms(Pose2D(), scene, a, a)
+    assert "stability" not in plain  # the thesis's five terms unless asked
+    terms = nav.reward_terms(Pose2D(), scene, a, a, max_tilt=0.1, stability_scale=0.2)
+    assert terms["stability"] == pytest.approx(math.exp(-0.5))  # hand-computed: exp(-0.1 / 0.2)
+    assert {k: terms[k] for k in plain} == plain
+    weights = {"distance": 0.25, "angle": 0.25, "orientation": 0.2, "continuity": 0.15, "stability": 0.15}
+    expected = sum(weights[k] * terms[k] for k in weights)
+    assert nav.weighted_reward(terms, weights) == pytest.approx(expected)
+
+
+def test_imu_values_are_appended_after_the_thesis_layout():
+    config = NavTaskConfig(observe_imu=True, imu_scale=0.35)
+    scene = Scene(goal=Pose2D(1.0, 0.5, 0.3))
+    prev = ([0.1] * 6, [-0.2] * 6)
+    base = nav.observation(Pose2D(), scene, prev, NavTaskConfig())
+    obs = nav.observation(Pose2D(), scene, prev, config, tilt=(0.1, -0.2, 0.3))
+    assert config.observation_size == 20 and obs.shape == (20,)
+    np.testing.assert_array_equal(obs[:17], base)
+    np.testing.assert_allclose(obs[17:], np.tanh(np.array([0.1, -0.2, 0.3]) / 0.35), rtol=1e-6)
+    assert NavTaskConfig(obstacles=True, observe_imu=True).observation_size == 17 + 36 + 3
+
+
+def test_bad_option_values_are_named():
+    with pytest.raises(ValueError, match="task.observe_imu"):
+        fconf.build_task({"name": "nav", "observe_imu": "yes"})
+    with pytest.raises(ValueError, match="task.imu_scale"):
+        fconf.build_task({"name": "nav", "imu_scale": -1.0})
+    with pytest.raises(ValueError, match="unknown term.*wobble"):
+        fconf.build_task({"name": "nav", "reward_weights": {"wobble": 0.1}})
+
+
+def test_2d_env_with_the_options_reports_zero_tilt():
+    task = dict(fconf.load_preset("task", "nav"), observe_imu=True,
+                reward_weights={"distance": 0.3, "angle": 0.3, "orientation": 0.2, "continuity": 0.1, "stability": 0.1})
+    env = FootstepEnv(task=task)
+    obs, _ = env.reset(seed=0)
+    assert obs.shape == (20,) and env.observation_space.shape == (20,)
+    obs, _, _, _, info = env.step(np.full(6, 0.5, dtype=np.float32))
+    np.testing.assert_array_equal(obs[17:], 0.0)
+    assert info["reward_terms"]["stability"] == 1.0  # nothing tilts in 2D
+    env.close()
+
+
+def test_mujoco_env_observes_the_measured_tilt():
+    pytest.importorskip("mujoco")
+    from footsim.backends.physics3d import fused_roll_pitch
+
+    task = dict(fconf.load_preset("task", "nav"), observe_imu=True)
+    env = FootstepEnv(backend="mujoco", task=task)
+    try:
+        env.reset(seed=1)
+        obs, _, _, _, info = env.step(np.array([1.0, 0.0, 0.0, 1.0, 0.0, 0.0], dtype=np.float32))
+        assert info["outcome"] == "running"
+        roll, pitch = fused_roll_pitch(env.backend.sim.base_pose()[1])  # independent read of the base
+        np.testing.assert_allclose(obs[17:19], np.tanh(np.array([roll, pitch]) / 0.35), atol=1e-6)
+        assert np.tanh(max(abs(roll), abs(pitch)) / 0.35) <= obs[19] + 1e-6
+    finally:
+        env.close()
