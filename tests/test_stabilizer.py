@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from footsim.backends.physics3d import TrunkStabilizer
+from footsim.backends.physics3d import TrunkStabilizer, fused_roll_pitch
 from footsim.walk.ik import LEG_JOINT_NAMES
 
 
@@ -22,9 +22,11 @@ def test_correction_adds_gain_times_error_to_the_named_joints():
     stab = TrunkStabilizer(hip_roll=0.5, hip_pitch=-0.25, ankle_roll=0.1, ankle_pitch=0.2)
     targets = np.linspace(-0.3, 0.3, 12)
     roll, pitch = 0.1, 0.2
-    out = stab.correct(targets, rotation(roll, pitch), planned_roll=0.0, planned_pitch=0.15)
+    tilt = fused_roll_pitch(rotation(roll, pitch))
     # Fused roll of Ry(p) Rx(r) is asin(cos p sin r), fused pitch is p (hand-derived).
     e_roll, e_pitch = math.asin(math.cos(pitch) * math.sin(roll)), pitch - 0.15
+    assert tilt == pytest.approx((e_roll, pitch), abs=1e-12)
+    out = stab.correct(targets, tilt, planned_roll=0.0, planned_pitch=0.15)
     expected = dict(zip(LEG_JOINT_NAMES, targets))
     for side in "LR":
         expected[f"{side}HipRoll"] += 0.5 * e_roll
@@ -97,3 +99,18 @@ def test_step_result_reports_the_trunk_tilt():
         assert result.max_tilt > 0.01  # walking at max step does tilt the trunk
     finally:
         backend.close()
+
+
+def test_quaternion_tilt_matches_the_rotation_matrix_route():
+    """MuJoCo/dm-control read the tilt straight from the quaternion; compare with MuJoCo's own
+    quaternion → matrix conversion followed by the fused angles."""
+    mujoco = pytest.importorskip("mujoco")
+    from footsim.backends.mujoco_backend import quat_fused_roll_pitch
+
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        q = rng.normal(size=4)
+        q /= np.linalg.norm(q)
+        mat = np.zeros(9)
+        mujoco.mju_quat2Mat(mat, q)
+        assert quat_fused_roll_pitch(q) == pytest.approx(fused_roll_pitch(mat.reshape(3, 3)), abs=1e-12)

@@ -40,6 +40,7 @@ from dm_control.rl.control import PhysicsError
 from footsim.backends.base import RenderOverlay
 from footsim.backends.mujoco_backend import (
     MujocoModelOptions,
+    quat_fused_roll_pitch,
     _BALL_RGBA,
     _OBSTACLE_BIT,
     _OBSTACLE_RGBA,
@@ -231,6 +232,9 @@ class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # rand
     def base_pose(self) -> tuple[np.ndarray, np.ndarray]:
         q = self._root_q.copy()  # free joint: position, unit quaternion (w, x, y, z)
         return q[:3], quat_to_matrix(q[3:7])
+
+    def base_tilt(self) -> tuple[float, float]:
+        return quat_fused_roll_pitch(self._root_q[3:7])
 
     def obstacle_contact(self) -> bool:
         data = self.physics.data

@@ -81,10 +81,19 @@ class ServoFeedForward:
         self.previous = np.array(targets, dtype=float)
 
     def ctrl(self, targets: np.ndarray) -> np.ndarray:
-        targets = np.asarray(targets, dtype=float)
+        """``targets``: a float array the caller does not mutate afterwards (kept as the previous)."""
         out = targets + self.gain * (targets - self.previous)
-        self.previous = targets.copy()
+        self.previous = targets
         return out
+
+
+def quat_fused_roll_pitch(quat) -> tuple[float, float]:
+    """Fused (roll, pitch) of a unit quaternion (w, x, y, z): the rotation matrix's R[2,1] and
+    -R[2,0] without building it (``physics3d.fused_roll_pitch``)."""
+    w, x, y, z = quat.tolist()
+    s_pitch, s_roll = 2.0 * (w * y - x * z), 2.0 * (y * z + w * x)
+    return (math.asin(-1.0 if s_roll < -1.0 else 1.0 if s_roll > 1.0 else s_roll),
+            math.asin(-1.0 if s_pitch < -1.0 else 1.0 if s_pitch > 1.0 else s_pitch))
 
 
 def obstacle_geometry(x: float, y: float, r: float, ball: bool):
@@ -323,6 +332,9 @@ class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomi
         q = self.data.qpos
         mujoco.mju_quat2Mat(self._rot, q[self._free_q + 3:self._free_q + 7])
         return q[self._free_q:self._free_q + 3].copy(), self._rot.reshape(3, 3).copy()
+
+    def base_tilt(self) -> tuple[float, float]:
+        return quat_fused_roll_pitch(self.data.qpos[self._free_q + 3:self._free_q + 7])
 
     def obstacle_contact(self) -> bool:
         d = self.data

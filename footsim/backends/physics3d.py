@@ -72,6 +72,10 @@ class TrunkStabilizer:
         self.hip_roll, self.hip_pitch = float(hip_roll), float(hip_pitch)
         self.ankle_roll, self.ankle_pitch = float(ankle_roll), float(ankle_pitch)
         self.active = any(v != 0.0 for v in gains.values())
+        # Per-joint gains (LEG_JOINT_NAMES order) so a correction is two vector operations per tick.
+        self._roll_gains, self._pitch_gains = np.zeros(12), np.zeros(12)
+        self._roll_gains[self._HIP_ROLL], self._roll_gains[self._ANKLE_ROLL] = self.hip_roll, self.ankle_roll
+        self._pitch_gains[self._HIP_PITCH], self._pitch_gains[self._ANKLE_PITCH] = self.hip_pitch, self.ankle_pitch
 
     @classmethod
     def from_config(cls, config) -> "TrunkStabilizer":
@@ -83,16 +87,9 @@ class TrunkStabilizer:
             raise ValueError(f"backend.stabilizer: unknown key(s) {unknown}; valid: {list(cls.GAINS)}")
         return cls(**config)
 
-    def correct(self, targets: np.ndarray, rotation: np.ndarray, planned_roll: float, planned_pitch: float) -> np.ndarray:
-        """``targets`` (12,) corrected for the measured base ``rotation`` (a new array)."""
-        roll, pitch = fused_roll_pitch(rotation)
-        e_roll, e_pitch = roll - planned_roll, pitch - planned_pitch
-        out = np.array(targets, dtype=float)
-        out[self._HIP_ROLL] += self.hip_roll * e_roll
-        out[self._HIP_PITCH] += self.hip_pitch * e_pitch
-        out[self._ANKLE_ROLL] += self.ankle_roll * e_roll
-        out[self._ANKLE_PITCH] += self.ankle_pitch * e_pitch
-        return out
+    def correct(self, targets: np.ndarray, tilt: tuple[float, float], planned_roll: float, planned_pitch: float) -> np.ndarray:
+        """``targets`` (12,) corrected for the measured fused ``tilt`` = (roll, pitch) (a new array)."""
+        return targets + (self._roll_gains * (tilt[0] - planned_roll) + self._pitch_gains * (tilt[1] - planned_pitch))
 
 
 def quat_to_matrix(q: np.ndarray) -> np.ndarray:
@@ -134,6 +131,10 @@ class PhysicsSim(ABC):
     @abstractmethod
     def base_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """Base (trunk) position (3,) and body-to-world rotation matrix (3, 3)."""
+
+    def base_tilt(self) -> tuple[float, float]:
+        """Fused (roll, pitch) of the base; a sim may override it with a cheaper read."""
+        return fused_roll_pitch(self.base_pose()[1])
 
     @abstractmethod
     def obstacle_contact(self) -> bool:
@@ -375,13 +376,14 @@ class Physics3DBackend(Backend):
         advance = self.sim.advance
         watch_contacts = bool(self.scene.all_obstacles)
         stabilize = self.stabilizer.correct if self.stabilizer.active else None
+        base_tilt = self.sim.base_tilt
         trunk = trajectory.trunk
         for ticks in range(1, len(targets) + 1):
             if stabilize is None:
                 set_targets(targets[ticks - 1])
             else:
-                rotation = self.sim.base_pose()[1]
-                set_targets(stabilize(targets[ticks - 1], rotation, trunk[ticks - 1, 3], trunk[ticks - 1, 4]))
+                row = trunk[ticks - 1]
+                set_targets(stabilize(targets[ticks - 1], base_tilt(), row[3], row[4]))
             advance(substeps)
             if ticks % check == 0:
                 error, fell = self._status()
