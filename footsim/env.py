@@ -41,7 +41,15 @@ class DeferredGenerator:
         return self._generator
 
     def __getattr__(self, name: str):
+        if name.startswith("_"):  # e.g. copy/pickle probing __setstate__, or an unset slot
+            raise AttributeError(name)
         return getattr(self.generator, name)
+
+    def __getstate__(self):
+        return self.seed, self._generator
+
+    def __setstate__(self, state) -> None:
+        self.seed, self._generator = state
 
 
 class FootstepEnv(gym.Env):

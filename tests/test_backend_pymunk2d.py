@@ -222,3 +222,22 @@ def test_deferred_generator_is_the_seeded_generator():
     assert lazy._generator is None  # nothing created until first use
     np.testing.assert_array_equal(lazy.normal(0.0, 1.0, 3), eager.normal(0.0, 1.0, 3))
     assert lazy.random() == eager.random() and lazy.uniform(-1, 2) == eager.uniform(-1, 2)
+
+
+def test_deferred_generator_and_env_survive_copy_and_pickle():
+    import copy
+    import pickle
+
+    from footsim.env import DeferredGenerator, FootstepEnv
+
+    for used in (False, True):
+        for clone in (copy.deepcopy, lambda g: pickle.loads(pickle.dumps(g))):
+            lazy, eager = DeferredGenerator(99), np.random.default_rng(99)
+            if used:
+                lazy.normal(), eager.normal()
+            assert clone(lazy).random() == eager.random()
+    env = FootstepEnv(obstacles=True, noise="localization")
+    env.reset(seed=3)
+    twin = copy.deepcopy(env)
+    a = np.full(6, 0.3)
+    np.testing.assert_array_equal(env.step(a)[0], twin.step(a)[0])  # same noise draws from the copies
