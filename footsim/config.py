@@ -81,14 +81,15 @@ def build_task(task_cfg: Mapping):
         cfg["success_angle"] = math.radians(_number(cfg, "success_angle_deg", "task"))
         cfg.pop("success_angle_deg")
     known = {"max_steps", "success_distance", "success_angle", "distance_scale", "n_rays", "ray_range",
-             "ray_scale", "reward_weights", "observe_imu", "imu_scale", "stability_scale"}
+             "ray_scale", "reward_weights", "observe_imu", "imu_scale", "stability_scale", "path_hint",
+             "path_hint_lookahead", "path_hint_clearance"}
     unknown = sorted(set(cfg) - known)
     if unknown:
         raise ValueError(f"task: unknown key(s) {unknown}; valid: {sorted(known | {'name', 'obstacles', 'scenes', 'success_angle_deg'})}")
-    if "observe_imu" in cfg:
-        if not isinstance(cfg["observe_imu"], bool):
-            raise ValueError(f"task.observe_imu must be true or false, got {cfg['observe_imu']!r}")
-    for key in known - {"reward_weights", "max_steps", "n_rays", "observe_imu"}:
+    for key in ("observe_imu", "path_hint"):
+        if key in cfg and not isinstance(cfg[key], bool):
+            raise ValueError(f"task.{key} must be true or false, got {cfg[key]!r}")
+    for key in known - {"reward_weights", "max_steps", "n_rays", "observe_imu", "path_hint"}:
         if key in cfg:
             cfg[key] = _number(cfg, key, "task")
     for key in ("max_steps", "n_rays"):

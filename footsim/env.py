@@ -21,6 +21,7 @@ from footsim.walk.footsteps import DoubleStep, action_values
 
 OUTCOMES = ("running", "success", "timeout", "fall", "collision", "sim_error")
 _ZERO_TILT = (0.0, 0.0, 0.0)
+_NO_HINT = (0.0, 1.0)
 _ZERO_ACTION = [0.0] * 6  # never mutated: actions are fresh lists
 isfinite = math.isfinite
 
@@ -122,6 +123,7 @@ class FootstepEnv(gym.Env):
         self.scene: Scene | None = None
         self._prev_actions = (_ZERO_ACTION, _ZERO_ACTION)  # a(t-1), a(t-2) as lists of 6 floats
         self._tilt = _ZERO_TILT  # (roll, pitch, max tilt) of the last step, for task.observe_imu
+        self._path_hint: nav.PathHint | None = None  # task.path_hint: planned at reset
         self._steps = 0
         self._time = 0.0
         self._pose = Pose2D()
@@ -159,7 +161,9 @@ class FootstepEnv(gym.Env):
         self._outcome = "running"
         self.noise.reset(self._noise_rng)  # per-episode bias, empty delay buffer
         self._believed = self.noise.believe(self._pose, self._noise_rng)
-        obs = nav.observation(self._believed, self.scene, self._prev_actions, self.task)
+        self._path_hint = nav.PathHint(self.scene, self._pose, self.task) if self.task.path_hint else None
+        obs = nav.observation(self._believed, self.scene, self._prev_actions, self.task, None, self._tilt,
+                              self._hint())
         return obs, self._info({})
 
     def step(self, action):
@@ -208,7 +212,7 @@ class FootstepEnv(gym.Env):
         self._prev_actions = (action, self._prev_actions[0])
         self._believed = self.noise.believe(self._pose, self._noise_rng)
         obs = nav.observation(self._believed, scene, self._prev_actions, task,
-                              features if self._believed is self._pose else None, self._tilt)
+                              features if self._believed is self._pose else None, self._tilt, self._hint())
         info = self._info(terms, result)
         return obs, float(reward), terminated, truncated, info
 
@@ -230,6 +234,10 @@ class FootstepEnv(gym.Env):
         self.backend.close()
 
     # -- helpers --------------------------------------------------------------------------
+    def _hint(self) -> tuple[float, float]:
+        """The global-path hint from the believed pose (``task.path_hint``); a constant otherwise."""
+        return _NO_HINT if self._path_hint is None else self._path_hint.bearing(self._believed)
+
     def _info(self, terms: dict, result=None) -> dict[str, Any]:
         info = {
             "pose": np.array(self._pose, dtype=float),

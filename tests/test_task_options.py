@@ -74,3 +74,46 @@ def test_mujoco_env_observes_the_measured_tilt():
         assert np.tanh(max(abs(roll), abs(pitch)) / 0.35) <= obs[19] + 1e-6
     finally:
         env.close()
+
+
+def test_path_hint_points_at_the_goal_in_free_space():
+    scene = Scene(goal=Pose2D(2.0, 1.0, 0.5))
+    config = NavTaskConfig(path_hint=True)
+    hint = nav.PathHint(scene, Pose2D(), config)
+    pose = Pose2D(0.0, 0.0, 0.3)
+    sin_h, cos_h = hint.bearing(pose)
+    beta = math.atan2(1.0, 2.0) - 0.3  # hand-computed bearing to the goal, robot frame
+    assert (sin_h, cos_h) == pytest.approx((math.sin(beta), math.cos(beta)), abs=1e-9)
+
+
+def test_path_hint_goes_around_an_obstacle_on_the_straight_line():
+    from footsim.tasks.scenes import Obstacle
+
+    scene = Scene(goal=Pose2D(2.0, 0.0, 0.0), obstacles=(Obstacle(1.0, 0.0, 0.3),))
+    config = NavTaskConfig(obstacles=True, path_hint=True, path_hint_lookahead=1.0)
+    hint = nav.PathHint(scene, Pose2D(), config)
+    sin_h, cos_h = hint.bearing(Pose2D())
+    assert abs(sin_h) > 0.3  # not straight at the obstacle (bearing 0)
+    # every planned point keeps the clearance from the obstacle (cell-size tolerance)
+    assert np.hypot(hint.points[:, 0] - 1.0, hint.points[:, 1]).min() >= 0.3 + 0.2 - 0.05
+    obs = nav.observation(Pose2D(), scene, ([0.0] * 6, [0.0] * 6), config, hint=(sin_h, cos_h))
+    assert config.observation_size == 17 + 36 + 2 and obs.shape == (55,)
+    assert obs[-2:] == pytest.approx([sin_h, cos_h], abs=1e-6)
+
+
+def test_env_with_path_hint_runs_and_checks_pass():
+    from gymnasium.utils.env_checker import check_env
+
+    task = dict(fconf.load_preset("task", "nav_obstacles"), path_hint=True)
+    env = FootstepEnv(task=task)
+    check_env(env, skip_render_check=True)
+    obs, _ = env.reset(seed=3)
+    assert obs.shape == (55,)
+    for _ in range(5):
+        obs, _, terminated, truncated, _ = env.step(env.action_space.sample())
+        assert np.isfinite(obs).all() and abs(obs[-2] ** 2 + obs[-1] ** 2 - 1.0) < 1e-5
+        if terminated or truncated:
+            break
+    env.close()
+    with pytest.raises(ValueError, match="task.path_hint"):
+        fconf.build_task({"name": "nav", "path_hint": 1})

@@ -36,10 +36,13 @@ class NavTaskConfig:
     observe_imu: bool = False  # append tanh(roll / imu_scale), tanh(pitch / ·), tanh(max tilt / ·)
     imu_scale: float = 0.35  # [rad]
     stability_scale: float = 0.2  # [rad] reward term "stability" = exp(-max tilt / this)
+    path_hint: bool = False  # append sin, cos of the bearing to a point on a global grid path (thesis ch. 9)
+    path_hint_lookahead: float = 0.5  # [m] along the path past its point closest to the believed pose
+    path_hint_clearance: float = 0.2  # [m] inflation of the obstacles for the path (footprint + margin)
 
     def __post_init__(self) -> None:
         for key in ("success_distance", "success_angle", "distance_scale", "ray_range", "ray_scale", "imu_scale",
-                    "stability_scale"):
+                    "stability_scale", "path_hint_lookahead", "path_hint_clearance"):
             value = getattr(self, key)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"task.{key} must be a positive number, got {value!r}")
@@ -56,7 +59,8 @@ class NavTaskConfig:
 
     @property
     def observation_size(self) -> int:
-        return 17 + (int(self.n_rays) if self.obstacles else 0) + (3 if self.observe_imu else 0)
+        return (17 + (int(self.n_rays) if self.obstacles else 0) + (3 if self.observe_imu else 0)
+                + (2 if self.path_hint else 0))
 
     @property
     def uses_tilt(self) -> bool:
@@ -115,17 +119,22 @@ def ray_distances(pose: Pose2D, obstacles: tuple[Obstacle, ...], n_rays: int, ma
 def ray_list(pose: Pose2D, circles, n_rays: int, max_range: float) -> list[float]:
     """:func:`ray_distances` as a list, for circles given as ``(x, y, r)`` tuples."""
     out = [max_range] * n_rays
-    hits = ray_hits(pose, circles, n_rays, max_range)
-    if hits is None:
-        return [0.0] * n_rays
-    for k, t in hits.items():
-        out[k] = t
-    return out
+    hit = _ray_scan(pose, circles, n_rays, max_range, out)
+    return [0.0] * n_rays if hit is None else out
 
 
 def ray_hits(pose: Pose2D, circles, n_rays: int, max_range: float) -> dict[int, float] | None:
     """The rays that hit a circle closer than ``max_range``: ``{ray index: distance}``; ``None``
-    when the origin is inside a circle (every ray reports 0).
+    when the origin is inside a circle (every ray reports 0)."""
+    out = [max_range] * n_rays
+    hit = _ray_scan(pose, circles, n_rays, max_range, out)
+    return None if hit is None else {k: out[k] for k in hit}
+
+
+def _ray_scan(pose: Pose2D, circles, n_rays: int, max_range: float, out: list[float]) -> list[int] | None:
+    """Write into ``out`` (``n_rays`` × ``max_range``) each ray's distance to the first circle
+    hit; returns the indices of the rays that hit (possibly repeated), ``None`` when the origin is
+    inside a circle.
 
     Closed form per ray and circle: with ``u`` the ray's unit direction and ``c`` the circle's
     centre relative to the origin, ``|t·u − c|² = r²`` gives ``t = u·c − sqrt((u·c)² − (|c|² − r²))``.
@@ -134,16 +143,15 @@ def ray_hits(pose: Pose2D, circles, n_rays: int, max_range: float) -> dict[int, 
     circles whose nearest point is beyond ``max_range`` are skipped.
     """
     n = n_rays
-    hits: dict[int, float] = {}
+    hit: list[int] = []
     if not circles:
-        return hits
+        return hit
     cos_k, sin_k = _ray_directions(n)
     px, py, theta = pose
     c, s = math.cos(theta), math.sin(theta)
     per_rad = n / (2.0 * math.pi)  # ray index per radian of heading
     far = max_range + 1e-6 * (1.0 + max_range)
     sqrt, floor, ceil, atan2, asin = math.sqrt, math.floor, math.ceil, math.atan2, math.asin
-    get = hits.get
     for ox, oy, r in circles:
         dx, dy = ox - px, oy - py
         d2 = dx * dx + dy * dy
@@ -161,15 +169,15 @@ def ray_hits(pose: Pose2D, circles, n_rays: int, max_range: float) -> dict[int, 
         lo, hi = ceil(bearing - half), floor(bearing + half)
         if hi - lo >= n:
             lo, hi = 0, n - 1
-        for k in range(lo, hi + 1):
-            k %= n
+        for k in (range(lo, hi + 1) if lo >= 0 and hi < n else [k % n for k in range(lo, hi + 1)]):
             proj = rx * cos_k[k] + ry * sin_k[k]
             disc = proj * proj - cc
             if disc >= 0.0:
                 t = proj - sqrt(disc)
-                if 0.0 <= t < get(k, max_range):
-                    hits[k] = t
-    return hits
+                if 0.0 <= t < out[k]:
+                    out[k] = t
+                    hit.append(k)
+    return hit
 
 
 def nearest_obstacle_distance(pose: Pose2D, obstacles: tuple[Obstacle, ...]) -> float:
@@ -245,11 +253,14 @@ def is_success(pose: Pose2D, goal: Pose2D, config: NavTaskConfig,
 def observation(
     believed: Pose2D, scene: Scene, previous_actions, config: NavTaskConfig,
     features: tuple[float, float, float] | None = None, tilt: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    hint: tuple[float, float] = (0.0, 1.0),
 ) -> np.ndarray:
     """17-D (or 53-D with rays) observation from the pose the robot *believes* it has.
 
     Layout: [tanh(d), sin α, cos α, sin β, cos β, a(t−1) (6), a(t−2) (6), tanh(rays) (36)], and
-    with ``config.observe_imu`` then tanh(· / imu_scale) of ``tilt`` = (roll, pitch, max tilt).
+    with ``config.observe_imu`` then tanh(· / imu_scale) of ``tilt`` = (roll, pitch, max tilt), and
+    with ``config.path_hint`` then ``hint`` = (sin, cos) of the bearing to the path's lookahead
+    point (:class:`PathHint`).
     ``previous_actions`` holds a(t−1) and a(t−2), each an array or a list of 6 floats.
     """
     d, alpha, beta = features if features is not None else goal_features(believed, scene.goal)
@@ -259,19 +270,57 @@ def observation(
     values += a2.tolist() if isinstance(a2, np.ndarray) else a2
     if config.obstacles:
         n, max_range, scale = int(config.n_rays), config.ray_range, config.ray_scale
-        hits = ray_hits(believed, scene.circles, n, max_range)
-        if hits is None:  # inside a circle: every ray reports 0
+        rays = [max_range] * n
+        hit = _ray_scan(believed, scene.circles, n, max_range, rays)
+        if hit is None:  # inside a circle: every ray reports 0
             values += [0.0] * n
         else:
             start = len(values)
             values += _misses(n, max_range / scale)
             tanh = math.tanh
-            for k, t in hits.items():
-                values[start + k] = tanh(t / scale)
+            for k in hit:
+                values[start + k] = tanh(rays[k] / scale)
     if config.observe_imu:
         scale = config.imu_scale
         values += [math.tanh(tilt[0] / scale), math.tanh(tilt[1] / scale), math.tanh(tilt[2] / scale)]
+    if config.path_hint:
+        values += [hint[0], hint[1]]
     return np.array(values, dtype=np.float32)
+
+
+class PathHint:
+    """A global path from the start to the goal around the scene's obstacles (ball included),
+    planned once per episode (Theta* on a costmap inflated by ``path_hint_clearance``; a straight
+    line when no path exists), and the bearing from a pose to the point ``path_hint_lookahead``
+    metres along it past the path point closest to that pose (never moving back along the path).
+    """
+
+    def __init__(self, scene: Scene, start: Pose2D, config: NavTaskConfig):
+        from footsim.planners.grid import Costmap, densify, plan_path
+
+        self.lookahead = float(config.path_hint_lookahead)
+        goal = (scene.goal.x, scene.goal.y)
+        points = np.array([[start.x, start.y], goal], dtype=float)
+        obstacles = scene.all_obstacles
+        if obstacles:
+            costmap = Costmap.from_obstacles(obstacles, [(start.x, start.y), goal], 0.05, float(config.path_hint_clearance))
+            path = plan_path(costmap, (start.x, start.y), goal, "theta_star")
+            if path is not None:
+                points = path.points
+        self.spacing = 0.05
+        self.points = densify(points, self.spacing)
+        self.index = 0
+
+    def bearing(self, pose: Pose2D) -> tuple[float, float]:
+        """(sin, cos) of the lookahead point's bearing relative to the pose's heading."""
+        pts = self.points[self.index:]
+        self.index += int(np.argmin(np.hypot(pts[:, 0] - pose.x, pts[:, 1] - pose.y)))
+        k = min(self.index + int(round(self.lookahead / self.spacing)), len(self.points) - 1)
+        dx, dy = self.points[k, 0] - pose.x, self.points[k, 1] - pose.y
+        if dx * dx + dy * dy < 1e-12:  # at the goal: point along the goal's heading
+            return 0.0, 1.0
+        angle = wrap_angle(math.atan2(dy, dx) - pose.theta)
+        return math.sin(angle), math.cos(angle)
 
 
 _MISSES: dict[tuple[int, float], list[float]] = {}
