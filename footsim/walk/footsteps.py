@@ -277,9 +277,10 @@ class FootstepGeometry:
     def _land(self, left: bool, x: float, y: float, theta: float) -> tuple[float, float, float, bool]:
         """:meth:`landing` on plain floats: the executed ``(x, y, theta)`` and whether it interfered."""
         lim = self.limits
-        x = min(max(x, -lim.x), lim.x)
-        y = min(max(y, -lim.y), lim.y)
-        theta = min(max(theta, -lim.theta), lim.theta)
+        lx, ly, lt = lim.x, lim.y, lim.theta  # clip to the limits (= min(max(v, -l), l))
+        x = -lx if x < -lx else lx if x > lx else x
+        y = -ly if y < -ly else ly if y > ly else y
+        theta = -lt if theta < -lt else lt if theta > lt else theta
         rest_y = self.foot_distance if left else -self.foot_distance
         if abs(rest_y + y) >= self._clear:  # farther apart than two circumradii: no overlap
             return x, y, theta, False
