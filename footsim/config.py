@@ -42,7 +42,8 @@ def load_preset(group: str, spec: str | Mapping | None) -> dict:
         path = conf_dir() / group / f"{spec}.yaml"
         if not path.is_file():
             raise ValueError(f"unknown {group} preset {spec!r}; available: {', '.join(available(group))}")
-        return OmegaConf.to_container(OmegaConf.load(path), resolve=True)
+        data = OmegaConf.load(path)
+        return OmegaConf.to_container(_merge_group_defaults(group, spec, data), resolve=True)
     if isinstance(spec, (Mapping, DictConfig)):
         data = OmegaConf.to_container(spec, resolve=True) if isinstance(spec, DictConfig) else dict(spec)
         base_name = data.get("name") if group in ("backend", "task", "robot") else None
@@ -54,6 +55,23 @@ def load_preset(group: str, spec: str | Mapping | None) -> dict:
             base = load_preset(group, GROUP_DEFAULTS[group])
         return OmegaConf.to_container(OmegaConf.merge(base, data), resolve=True)
     raise TypeError(f"{group} must be a preset name or a mapping, got {type(spec).__name__}")
+
+
+def _merge_group_defaults(group: str, name: str, data: DictConfig) -> DictConfig:
+    """A preset that starts with Hydra's ``defaults: [OTHER, _self_]`` (OTHER a preset of the
+    same group) is OTHER with this file's values merged over it, as Hydra composes it."""
+    if "defaults" not in data:
+        return data
+    entries = list(data.pop("defaults"))
+    if not all(isinstance(e, str) for e in entries) or entries.count("_self_") > 1 or (
+            "_self_" in entries and entries[-1] != "_self_"):
+        raise ValueError(f"{group} preset {name!r}: defaults must be preset names of the same group, "
+                         f"optionally ending with _self_; got {entries}")
+    merged = OmegaConf.create({})
+    for entry in entries:
+        if entry != "_self_":
+            merged = OmegaConf.merge(merged, load_preset(group, entry))
+    return OmegaConf.merge(merged, data)
 
 
 def walk_preset_for(backend: str) -> str:

@@ -324,3 +324,33 @@ def test_hpo_sweep_of_footsim_train_completes_and_resumes(tmp_path):
     study = optuna.load_study(study_name="ppo_2d", storage=storage)
     assert [t.number for t in study.trials] == [0, 1, 2] and all(t.state.name == "COMPLETE" for t in study.trials)
     assert "2 of 3 trials finished" in proc.stdout + proc.stderr
+
+
+# -- presets that extend another preset of their group --------------------------------------------
+@pytest.mark.parametrize("name, base", [("velocity_mujoco", "velocity"), ("footstep_mujoco", "footstep")])
+def test_group_defaults_match_hydra_composition(name, base):
+    """``load_preset`` (used outside Hydra) must read a ``defaults: [base, _self_]`` preset the way
+    Hydra composes it: the base's values with the file's overrides on top."""
+    import yaml
+
+    from footsim.config import load_preset
+
+    ours = load_preset("controller", name)
+    with initialize_config_dir(str(conf_dir()), version_base="1.3"):
+        hydra_cfg = compose("eval", overrides=[f"controller={name}"])
+    from omegaconf import OmegaConf
+
+    assert ours == OmegaConf.to_container(hydra_cfg.controller, resolve=True)
+    raw = yaml.safe_load((conf_dir() / "controller" / f"{name}.yaml").read_text())  # a parser other than ours
+    overrides = {k: v for k, v in raw.items() if k != "defaults"}
+    assert ours == {**load_preset("controller", base), **overrides} and "defaults" not in ours
+
+
+def test_group_defaults_must_name_presets(tmp_path, monkeypatch):
+    from footsim import config as fconf
+
+    (tmp_path / "controller").mkdir()
+    (tmp_path / "controller" / "odd.yaml").write_text("defaults:\n  - _self_\n  - velocity\nmax_vel_x: 0.1\n")
+    monkeypatch.setattr(fconf, "conf_dir", lambda: tmp_path)
+    with pytest.raises(ValueError, match="controller preset 'odd': defaults"):
+        fconf.load_preset("controller", "odd")
