@@ -188,12 +188,12 @@ class FootstepEnv(gym.Env):
             result.sim_error = result.sim_error or "non-finite pose"
         task, scene = self.task, self.scene
         features = nav.goal_features(self._pose, scene.goal)
+        max_tilt = None
         if task.uses_tilt:  # 3D options: IMU in the observation, stability in the reward
-            self._tilt = (*result.tilt, result.max_tilt)
-            terms = nav.reward_terms(self._pose, scene, action, self._prev_actions[0], features,
-                                     max_tilt=result.max_tilt, stability_scale=task.stability_scale)
-        else:
-            terms = nav.reward_terms(self._pose, scene, action, self._prev_actions[0], features)
+            max_tilt = result.max_tilt
+            self._tilt = (*result.tilt, max_tilt)
+        terms = nav.reward_terms(self._pose, scene, action, self._prev_actions[0], features, max_tilt,
+                                 task.stability_scale)
         reward = nav.weighted_reward(terms, task.reward_weights)
 
         if result.sim_error is not None:
