@@ -72,8 +72,9 @@ def test_hand_computed_box_circle_cases():
     assert not box_hits_circles(0, 0, 0, 0.1, 0.05, [])
 
 
-def _make_backend() -> Pymunk2DBackend:
-    return Pymunk2DBackend(build_robot(load_preset("robot", "wolfgang")), build_walk(load_preset("walk", "pymunk")))
+def _make_backend(**options) -> Pymunk2DBackend:
+    return Pymunk2DBackend(build_robot(load_preset("robot", "wolfgang")), build_walk(load_preset("walk", "pymunk")),
+                           **options)
 
 
 def _pymunk_double_step_collides(backend: Pymunk2DBackend, before, after_first, after_second) -> bool:
@@ -241,3 +242,43 @@ def test_deferred_generator_and_env_survive_copy_and_pickle():
     twin = copy.deepcopy(env)
     a = np.full(6, 0.3)
     np.testing.assert_array_equal(env.step(a)[0], twin.step(a)[0])  # same noise draws from the copies
+
+
+def test_nav_distance_collision_model_is_the_thesis_centre_distance_check():
+    """collision_model=nav_distance: a collision iff the navigation pose after either put-down
+    is closer than collision_distance to a circle's edge (pymunk's point query as the reference),
+    regardless of the feet; the footprint model on the same steps disagrees somewhere."""
+    backend = _make_backend(collision_model="nav_distance", collision_distance=0.1)
+    footprint = _make_backend()
+    rng = np.random.default_rng(3)
+    sampler = SceneSampler(obstacles=True, obstacle_offset_sigma=0.4, obstacle_radius_max=0.4)
+    outcomes, disagreements = [], 0
+    for episode in range(100):
+        scene = sampler.sample(rng)
+        backend.reset(scene, np.random.default_rng(episode))
+        footprint.reset(scene, np.random.default_rng(episode))
+        space = pymunk.Space()
+        for o in scene.all_obstacles:
+            space.add(pymunk.Circle(space.static_body, o.r, (o.x, o.y)))
+        for _ in range(30):
+            action = rng.uniform(-1, 1, 6)
+            left_before = backend.feet.left
+            result = backend.execute(DoubleStep.from_action(action, backend.robot.step_limits))
+            other = footprint.execute(DoubleStep.from_action(action, backend.robot.step_limits))
+            half_nav = mean_pose(left_before, backend.history[-2][1])  # the left stands, the right has landed
+            hits = [space.point_query_nearest((p.x, p.y), 0.1, pymunk.ShapeFilter()) for p in (half_nav, result.pose)]
+            expected = any(hit is not None and hit.distance < 0.1 for hit in hits)
+            assert result.collided == expected
+            disagreements += result.collided != other.collided
+            outcomes.append(expected)
+            if expected or other.collided:
+                break
+    assert 20 < sum(outcomes) < len(outcomes) - 200
+    assert disagreements > 0
+
+
+def test_collision_model_rejects_unknown_values():
+    with pytest.raises(ValueError, match="collision_model"):
+        _make_backend(collision_model="sphere")
+    with pytest.raises(ValueError, match="collision_distance"):
+        _make_backend(collision_model="nav_distance", collision_distance=-0.1)

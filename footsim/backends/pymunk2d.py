@@ -8,6 +8,12 @@ from the circle's centre to the rectangle is at most the radius), which is what 
 query of the same polygon against the same circles answers (``tests/test_backend_pymunk2d.py``
 checks the two against each other); :meth:`Pymunk2DBackend.space` builds that pymunk space on
 demand.  The navigation pose is the mean of the two feet.
+
+``collision_model="nav_distance"`` is the thesis's own 2D check instead (5.1.1: "the distance to
+the closest obstacle ... below a defined threshold"): the navigation pose at each put-down closer
+than ``collision_distance`` to an obstacle's or the ball's edge.  The thesis gives no threshold;
+the default 0.1 m is about the trunk's half width.  It ignores the feet, so it is more lenient than
+the footprint check (the feet reach 0.14 m sideways and 0.08 m forward of the navigation pose).
 """
 
 from __future__ import annotations
@@ -70,11 +76,21 @@ class Pymunk2DBackend(Backend):
     #: ``DeferredGenerator``): this backend draws only with execution noise or an execution model.
     deferred_rng = True
 
+    COLLISION_MODELS = ("footprint", "nav_distance")
+
     def __init__(self, robot: RobotSpec, walk: WalkParams, collision_ends_episode: bool = True,
                  execution_model: str | None = None, execution_noise: bool = True, execution_falls: bool = False,
-                 **unused):
+                 collision_model: str = "footprint", collision_distance: float = 0.1, **unused):
         if unused:
             raise ValueError(f"backend pymunk: unknown option(s) {sorted(unused)}")
+        if collision_model not in self.COLLISION_MODELS:
+            raise ValueError(f"backend.collision_model must be one of {list(self.COLLISION_MODELS)}, "
+                             f"got {collision_model!r}")
+        collision_distance = float(collision_distance)
+        if not collision_distance >= 0.0:
+            raise ValueError(f"backend.collision_distance must be >= 0, got {collision_distance!r}")
+        self.collision_model = collision_model
+        self.collision_distance = collision_distance
         self.execution_model = None
         if execution_model:  # commanded -> executed displacement fitted on a 3D backend (footsim-calibrate)
             from footsim.calibrate import ExecutionModel
@@ -159,7 +175,12 @@ class Pymunk2DBackend(Backend):
         sigma = self._noise_sigma
         after_first, after_second, executed, n_interfered = self.geometry.execute(
             before, double_step, self._perturb if (sigma[0] or sigma[1] or sigma[2]) else None)
-        collided = bool(self._extents) and self._double_step_collides(before, after_first, after_second)
+        if not self._extents:
+            collided = False
+        elif self.collision_model == "footprint":
+            collided = self._double_step_collides(before, after_first, after_second)
+        else:
+            collided = self._nav_too_close(after_first.nav_pose) or self._nav_too_close(after_second.nav_pose)
         fell = False
         if self.execution_model is not None:
             after_first, after_second, fell = self._apply_execution_model(before, after_first, after_second, double_step)
@@ -215,6 +236,11 @@ class Pymunk2DBackend(Backend):
             self._swing_collides(start_right, right, mean_pose(mid_left, right), near)
             or self._swing_collides(mid_left, end_left, mean_pose(end_left, right), near)
         )
+
+    def _nav_too_close(self, nav: Pose2D) -> bool:
+        """Thesis check: the navigation pose within ``collision_distance`` of a circle's edge."""
+        x, y, margin = nav[0], nav[1], self.collision_distance
+        return any(math.hypot(x - cx, y - cy) - r < margin for _, _, _, _, (cx, cy, r) in self._extents)
 
     def _swing_collides(self, start: Pose2D, end: Pose2D, trunk: Pose2D, circles) -> bool:
         """Flying foot (``start`` → ``end``) at mid-swing and at put-down, and the trunk at put-down."""
