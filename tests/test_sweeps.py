@@ -156,6 +156,9 @@ def test_experiment_presets_compose():
     assert (cfg.task.name, cfg.noise.name) == ("nav_obstacles", "localization")
     cfg = _compose("+experiment=thesis_3d")
     assert (cfg.backend.name, cfg.hydra.runtime.choices.walk, cfg.task.name, cfg.noise.name) == ("pybullet", "pybullet", "nav", "none")
+    cfg = _compose("+experiment=dr_mujoco")
+    assert (cfg.backend.name, cfg.hydra.runtime.choices.walk, cfg.noise.name, cfg.randomization.name) == (
+        "mujoco", "mujoco", "localization", "default")
 
 
 # -- Optuna sweeper -----------------------------------------------------------------------------------
