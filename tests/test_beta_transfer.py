@@ -116,3 +116,38 @@ def test_obstacle_free_parent_seeds_an_obstacle_run_with_zero_ray_weights(tmp_pa
     expected = parent.predict(obs[:17], deterministic=True)[0]
     np.testing.assert_allclose(child.predict(obs, deterministic=True)[0], expected, atol=1e-6)
     np.testing.assert_allclose(child.predict(rays_changed, deterministic=True)[0], expected, atol=1e-6)
+
+
+def test_obstacle_parent_seeds_a_path_hint_run_but_not_an_incompatible_layout(tmp_path):
+    """Prefix rule: 53-D (goal+rays) seeds 55-D (goal+rays+hint) with zero hint weights; a parent
+    with the IMU block (56-D) cannot seed a larger goal+rays+hint run (59-D), whose blocks differ."""
+    from footsim.rl.transfer import init_from_run
+
+    obstacle_task = {"name": "nav_obstacles", "obstacles": True, "n_rays": 36}
+    parent_env = FootstepEnv(obstacles=True)
+    parent = PPO("MlpPolicy", parent_env, device="cpu", seed=0)
+    parent.save(tmp_path / "model.zip")
+    (tmp_path / "config.yaml").write_text(
+        "backend: {name: pymunk}\ntask: {name: nav_obstacles, obstacles: true, n_rays: 36}\n")
+    hint_task = dict(obstacle_task, path_hint=True)
+    child_env = FootstepEnv(task=hint_task)
+    child = PPO("MlpPolicy", child_env, device="cpu", seed=1)
+    record = init_from_run(child, tmp_path, hint_task)
+    assert record["observation_expanded"] == "53 -> 55"
+    obs, _ = child_env.reset(seed=0)
+    hint_changed = obs.copy()
+    hint_changed[53:] = (0.7, -0.7)
+    expected = parent.predict(obs[:53], deterministic=True)[0]
+    np.testing.assert_allclose(child.predict(obs, deterministic=True)[0], expected, atol=1e-6)
+    np.testing.assert_allclose(child.predict(hint_changed, deterministic=True)[0], expected, atol=1e-6)
+
+    imu_dir = tmp_path / "imu"
+    imu_dir.mkdir()
+    imu_parent = PPO("MlpPolicy", FootstepEnv(task=dict(obstacle_task, observe_imu=True)), device="cpu", seed=0)
+    imu_parent.save(imu_dir / "model.zip")
+    (imu_dir / "config.yaml").write_text(
+        "backend: {name: pymunk}\ntask: {name: nav_obstacles, obstacles: true, n_rays: 36, observe_imu: true}\n")
+    wide_task = dict(obstacle_task, path_hint=True, n_rays=40)  # 59-D: larger, but rays differ
+    wide = PPO("MlpPolicy", FootstepEnv(task=wide_task), device="cpu", seed=1)
+    with pytest.raises(ValueError, match="goal_and_actions\\+rays\\+imu"):
+        init_from_run(wide, imu_dir, wide_task)

@@ -115,7 +115,7 @@ def train(cfg: DictConfig, run_dir: Path) -> dict:
         if cfg.get("init_from"):
             from footsim.rl.transfer import init_from_run
 
-            lineage = init_from_run(model, cfg.init_from)
+            lineage = init_from_run(model, cfg.init_from, cfg.task)
             write_json(run_dir / "parent.json", lineage)
             print(f"initialised from {lineage['init_from']} ({lineage['parent_backend']}, {lineage['parent_task']})")
         done = 0

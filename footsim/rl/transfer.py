@@ -3,13 +3,13 @@
 Policy and value weights (Gaussian or Beta) are copied, and the parent's observation
 normalization statistics when both runs normalize observations.  The backend may differ —
 that is the point (2D → 3D, MuJoCo → PyBullet) — but the action space, the action
-distribution and the network shapes must match.  One observation change is allowed: a run
-without obstacles (17-D) can seed a run with obstacles (53-D), whose observation starts with
-the same 17 values; the 36 ray inputs then start with zero weights, so the child begins as
-the parent's goal-reaching policy and learns to use the rays (a curriculum that avoids the
-"stand still, never collide" local optimum of the obstacle task).  The same holds for the
-3 IMU inputs of ``task.observe_imu`` (17 → 20, or 17 → 56 with rays): a 2D policy seeds a 3D
-run that observes its trunk tilt.
+distribution and the network shapes must match.  The observation may grow when the parent's
+observation blocks (``NavTaskConfig.observation_layout``: goal and actions 17, rays, IMU 3,
+path hint 2) begin the child's: the new inputs start with zero weights, so the child begins as
+the parent's policy.  A run without obstacles (17-D) seeds one with obstacles (53-D): a
+curriculum that avoids the "stand still, never collide" local optimum of the obstacle task.
+A 2D policy seeds a 3D run that observes its trunk tilt (17 → 20), an obstacle run one with the
+global-path hint (53 → 55).
 """
 
 from __future__ import annotations
@@ -19,8 +19,13 @@ from pathlib import Path
 from footsim.rl.common import MODEL_FILE, VECNORM_FILE, load_run_config
 
 
-def init_from_run(model, parent_dir: str | Path) -> dict:
-    """Load ``parent_dir``'s weights into ``model``; returns the lineage record for the run dir."""
+def init_from_run(model, parent_dir: str | Path, task=None) -> dict:
+    """Load ``parent_dir``'s weights into ``model``; returns the lineage record for the run dir.
+
+    ``task`` (this run's task config) lets a parent seed a larger observation whenever the
+    parent's observation blocks are a prefix of this run's (e.g. an obstacle run seeding one with
+    the path hint); without it only a 17-D obstacle-free parent can seed a larger observation.
+    """
     import pickle
 
     from stable_baselines3 import PPO
@@ -34,12 +39,22 @@ def init_from_run(model, parent_dir: str | Path) -> dict:
         raise ValueError(f"init_from: the action spaces differ: parent {parent.action_space.shape} "
                          f"vs this run {model.action_space.shape}")
     ours, theirs = model.observation_space.shape, parent.observation_space.shape
+    parent_cfg = load_run_config(parent_dir)
     expand = ours != theirs
-    if expand and not (len(ours) == len(theirs) == 1 and theirs[0] == OBS_WITHOUT_RAYS and ours[0] > theirs[0]):
-        raise ValueError(
-            f"init_from: the observation spaces differ: parent {theirs} vs this run {ours} "
-            f"(only a {OBS_WITHOUT_RAYS}-D obstacle-free parent can seed a larger observation with rays)"
-        )
+    if expand:
+        parent_layout = _layout(parent_cfg.get("task")) or ((("goal_and_actions", OBS_WITHOUT_RAYS),)
+                                                            if theirs == (OBS_WITHOUT_RAYS,) else None)
+        our_layout = _layout(task)
+        if our_layout is None and len(ours) == 1 and theirs == (OBS_WITHOUT_RAYS,):
+            our_layout = parent_layout  # no task given: the historical rule, a 17-D parent widens
+        prefix = (parent_layout is not None and our_layout is not None and len(ours) == 1
+                  and ours[0] > theirs[0] and our_layout[: len(parent_layout)] == parent_layout)
+        if not prefix:
+            raise ValueError(
+                f"init_from: the observation spaces differ: parent {theirs} vs this run {ours} "
+                f"(a parent can seed a larger observation only if its blocks {_names(parent_layout)} "
+                f"begin this run's {_names(our_layout)})"
+            )
     if type(parent.policy) is not type(model.policy):
         raise ValueError(
             f"init_from: the parent's policy is {type(parent.policy).__name__}, this run's is "
@@ -62,7 +77,6 @@ def init_from_run(model, parent_dir: str | Path) -> dict:
         if getattr(stats, "norm_obs", False):
             venv.obs_rms = stats.obs_rms
             copied_stats = True
-    parent_cfg = load_run_config(parent_dir)
     return {
         "init_from": str(parent_dir),
         "parent_backend": parent_cfg.backend.name,
@@ -74,6 +88,23 @@ def init_from_run(model, parent_dir: str | Path) -> dict:
 
 
 OBS_WITHOUT_RAYS = 17
+
+
+def _layout(task) -> tuple[tuple[str, int], ...] | None:
+    """Observation blocks of a task config (a mapping or ``NavTaskConfig``); None if unknown."""
+    from footsim.tasks.nav import observation_layout
+
+    if task is None:
+        return None
+    get = task.get if hasattr(task, "get") else lambda key, default=None: getattr(task, key, default)
+    if get("obstacles") is None:
+        return None
+    return observation_layout(bool(get("obstacles")), int(get("n_rays", 36)), bool(get("observe_imu", False)),
+                              bool(get("path_hint", False)))
+
+
+def _names(layout) -> str:
+    return "unknown" if layout is None else "+".join(name for name, _ in layout)
 
 
 def _widen_first_layers(parent_state: dict, child_state: dict) -> dict:

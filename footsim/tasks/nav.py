@@ -63,6 +63,12 @@ class NavTaskConfig:
                 + (2 if self.path_hint else 0))
 
     @property
+    def observation_layout(self) -> tuple[tuple[str, int], ...]:
+        """The observation's blocks in order: a run whose layout is a prefix of another's can
+        seed it (``init_from`` gives the extra inputs zero weights)."""
+        return observation_layout(self.obstacles, int(self.n_rays), self.observe_imu, self.path_hint)
+
+    @property
     def uses_tilt(self) -> bool:
         """Whether the observation or the reward needs the backend's trunk tilt."""
         return self.observe_imu or self.reward_weights.get("stability", 0.0) > 0.0
@@ -96,6 +102,19 @@ _PI, _TWO_PI, _fmod = math.pi, 2.0 * math.pi, math.fmod
 
 
 _RAY_DIRECTIONS: dict[int, tuple[list[float], list[float]]] = {}
+
+
+def observation_layout(obstacles: bool, n_rays: int, observe_imu: bool = False,
+                       path_hint: bool = False) -> tuple[tuple[str, int], ...]:
+    """``(block, size)`` in observation order (see :func:`observation`)."""
+    blocks = [("goal_and_actions", 17)]
+    if obstacles:
+        blocks.append(("rays", n_rays))
+    if observe_imu:
+        blocks.append(("imu", 3))
+    if path_hint:
+        blocks.append(("path_hint", 2))
+    return tuple(blocks)
 
 
 def _ray_directions(n_rays: int) -> tuple[list[float], list[float]]:
