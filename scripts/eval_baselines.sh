@@ -8,6 +8,7 @@
 # Scene files: seed 20220101 (obstacle-free) and 20220102 (obstacles); the same files serve every
 # backend and controller.  Extra footsim-eval overrides go in EXTRA (e.g. EXTRA="controller.time_budget_s=0.1").
 # VELOCITY picks the velocity baseline's preset (e.g. VELOCITY=velocity_mujoco, tuned for the 3D walk);
+# FOOTSTEP likewise picks the footstep planner's preset (e.g. FOOTSTEP=footstep_mujoco).
 # NOISES limits the noise settings (e.g. NOISES=none).
 set -euo pipefail
 OUT=${OUT:-outputs/baselines}
@@ -15,6 +16,7 @@ BACKEND=${BACKEND:-pymunk}
 N=${N:-500}
 EXTRA=${EXTRA:-}
 VELOCITY=${VELOCITY:-velocity}
+FOOTSTEP=${FOOTSTEP:-footstep}
 NOISES=${NOISES:-none localization}
 mkdir -p "$OUT"
 [ -f "$OUT/scenes_free.json" ] || footsim-scenes out="$OUT/scenes_free.json" n="$N" seed=20220101 obstacles=false
@@ -22,6 +24,7 @@ mkdir -p "$OUT"
 for controller in velocity footstep; do
   preset=$controller
   [ "$controller" = velocity ] && preset=$VELOCITY
+  [ "$controller" = footstep ] && preset=$FOOTSTEP
   for set in free obstacles; do
     for noise in $NOISES; do
       dir="$OUT/$BACKEND/$controller/$set/$noise"
