@@ -33,6 +33,13 @@ def test_scenes_train_eval_resume(tmp_path):
                  "eval/episodes.csv", "eval/goals.png"):
         assert (run_dir / name).is_file(), name
     assert list((run_dir / "tb").iterdir()), "tensorboard logs"
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    events = EventAccumulator(str(next((run_dir / "tb").iterdir())))
+    events.Reload()
+    rates = {tag: events.Scalars(tag)[-1].value for tag in events.Tags()["scalars"] if tag.startswith("rollout/") and tag.endswith("_rate")}
+    assert set(rates) == {f"rollout/{o}_rate" for o in ("success", "timeout", "fall", "collision", "sim_error")}
+    assert sum(rates.values()) == pytest.approx(1.0, abs=1e-6) and rates["rollout/collision_rate"] > 0  # random steps collide
     summary = json.loads((run_dir / "eval/summary.json").read_text())
     assert summary["episodes"] == 5
     assert sum(summary[k] for k in ("success", "timeout", "fall", "collision", "sim_error")) == pytest.approx(1)

@@ -69,6 +69,36 @@ def _make_checkpoint_callback(run_dir: Path, every: int, n_envs: int):
     return AtomicCheckpoint()
 
 
+def _make_outcome_callback(window: int = 100):
+    """Logs the share of each episode outcome over the last ``window`` finished training episodes
+    as ``rollout/<outcome>_rate`` (TensorBoard): the return alone hides whether a policy succeeds,
+    stands still until the timeout, or collides."""
+    from collections import Counter, deque
+
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    from footsim.env import OUTCOMES
+
+    class OutcomeRates(BaseCallback):
+        def __init__(self):
+            super().__init__()
+            self.recent: deque[str] = deque(maxlen=window)
+
+        def _on_step(self) -> bool:
+            for done, info in zip(self.locals["dones"], self.locals["infos"]):
+                if done and info.get("outcome", "running") != "running":
+                    self.recent.append(info["outcome"])
+            return True
+
+        def _on_rollout_end(self) -> None:
+            if self.recent:
+                counts = Counter(self.recent)
+                for outcome in OUTCOMES[1:]:
+                    self.logger.record(f"rollout/{outcome}_rate", counts[outcome] / len(self.recent))
+
+    return OutcomeRates()
+
+
 def save_checkpoint(model, run_dir: Path) -> None:
     ckpt = run_dir / CHECKPOINT_DIR
     atomic_save(model.save, ckpt / LATEST, ".zip")
@@ -122,7 +152,10 @@ def train(cfg: DictConfig, run_dir: Path) -> dict:
     remaining = int(cfg.train.total_timesteps) - done
     started = time.time()
     if remaining > 0:
-        callback = _make_checkpoint_callback(run_dir, int(cfg.train.checkpoint_freq), int(cfg.train.n_envs))
+        from stable_baselines3.common.callbacks import CallbackList
+
+        callback = CallbackList([_make_checkpoint_callback(run_dir, int(cfg.train.checkpoint_freq), int(cfg.train.n_envs)),
+                                 _make_outcome_callback()])
         try:
             model.learn(total_timesteps=remaining, callback=callback, progress_bar=bool(cfg.train.progress_bar),
                         reset_num_timesteps=resume_dir is None, tb_log_name="ppo")
