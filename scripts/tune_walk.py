@@ -1,10 +1,13 @@
 """Tune the walk parameters of a 3D backend against the walk-check sequences (Optuna TPE).
 
     python scripts/tune_walk.py backend=mujoco trials=300 out=/tmp/tune_mujoco.db
+    python scripts/tune_walk.py backend=pybullet stabilizer=1 bench=1 enqueue_current=1 trials=120 out=/tmp/tune_pybullet.db
 
 Objective (minimised), per sequence of ``footsim.walkcheck.standard_sequences()``: a fall or a
 sim error costs ``2 + the share of double steps not executed``; otherwise the displacement
 error ratio against the 2D backend's displacement (the walk check's pass criterion is < 0.25).
+``bench=1`` adds footsim-bench's walking pattern as a ninth sequence (a gait the benchmark cannot
+walk would make its speed figures meaningless).
 Search ranges: the Bit-Bots' (shared/FACTS.md), widened where our model needs it.  The best
 parameters are printed as YAML for ``conf/walk/<backend>.yaml``.
 """
@@ -88,6 +91,11 @@ def main(argv: list[str]) -> None:
     trials = int(args.get("trials", "200"))
     storage = f"sqlite:///{args['out']}" if "out" in args else None
     sequences = standard_sequences()
+    if "bench" in args:  # also footsim-bench's pattern (half-limit forward, gentle turns), 30 double steps
+        from footsim.backends.bench3d import PATTERN
+        from footsim.walkcheck import Sequence
+
+        sequences.append(Sequence("bench pattern", np.tile(PATTERN, (15, 1)), "translation"))
     pymunk = make_backend("pymunk")
     commanded = {seq.name: run_sequence(pymunk, seq) for seq in sequences}
     base = fconf.load_preset("walk", fconf.walk_preset_for(name))
