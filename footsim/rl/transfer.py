@@ -91,16 +91,13 @@ OBS_WITHOUT_RAYS = 17
 
 
 def _layout(task) -> tuple[tuple[str, int], ...] | None:
-    """Observation blocks of a task config (a mapping or ``NavTaskConfig``); None if unknown."""
+    """Observation blocks of a task config mapping (a run's ``task``); None if unknown."""
     from footsim.tasks.nav import observation_layout
 
-    if task is None:
+    if task is None or task.get("obstacles") is None:
         return None
-    get = task.get if hasattr(task, "get") else lambda key, default=None: getattr(task, key, default)
-    if get("obstacles") is None:
-        return None
-    return observation_layout(bool(get("obstacles")), int(get("n_rays", 36)), bool(get("observe_imu", False)),
-                              bool(get("path_hint", False)))
+    return observation_layout(bool(task["obstacles"]), int(task.get("n_rays", 36)), bool(task.get("observe_imu", False)),
+                              bool(task.get("path_hint", False)))
 
 
 def _names(layout) -> str:

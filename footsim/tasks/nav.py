@@ -59,8 +59,7 @@ class NavTaskConfig:
 
     @property
     def observation_size(self) -> int:
-        return (17 + (int(self.n_rays) if self.obstacles else 0) + (3 if self.observe_imu else 0)
-                + (2 if self.path_hint else 0))
+        return sum(size for _, size in self.observation_layout)
 
     @property
     def observation_layout(self) -> tuple[tuple[str, int], ...]:
