@@ -46,9 +46,8 @@ START = {"freq": 1.0, "double_support_ratio": 0.05, "foot_distance": 0.1799, "fo
          "servo_kv": 4.0}
 
 
-# PyBullet walks at the Bit-Bots' ~2 Hz (conf/walk/pybullet.yaml): its own freq / height ranges.
-RANGE_OVERRIDES = {"pybullet": {"freq": (1.2, 2.4), "trunk_height": (0.36, 0.40), "double_support_ratio": (0.0, 0.3),
-                                "foot_rise": (0.04, 0.1)}}
+# Per-backend range changes (none since session 4: PyBullet walks MuJoCo's gait, conf/walk/pybullet.yaml).
+RANGE_OVERRIDES: dict[str, dict[str, tuple[float, float]]] = {}
 
 # Gains of footsim.backends.physics3d.TrunkStabilizer [rad per rad of trunk error]; hand scans
 # on MuJoCo: hip roll 0.3-0.5 helps the lateral sequences, pitch gains alone do not.
@@ -107,7 +106,8 @@ def main(argv: list[str]) -> None:
         if name == "pybullet":  # Bullet's motor and contact knobs (conf/backend/pybullet.yaml)
             options = {"position_gain_scale": trial.suggest_float("position_gain_scale", 2.0, 12.0),
                        "velocity_gain": trial.suggest_float("velocity_gain", 0.3, 2.0),
-                       "spinning_friction": trial.suggest_float("spinning_friction", 0.02, 0.3, log=True)}
+                       "spinning_friction": trial.suggest_float("spinning_friction", 0.02, 0.3, log=True),
+                       "solver_iterations": trial.suggest_categorical("solver_iterations", [30, 60, 90])}
         else:  # the MuJoCo model options shared by mujoco and dm_control
             options = {"physics_dt": trial.suggest_categorical("physics_dt", [0.005, 0.01]), "control_dt": 0.01,
                        "torsional_friction": trial.suggest_float("torsional_friction", 0.02, 0.1, log=True),
@@ -127,7 +127,7 @@ def main(argv: list[str]) -> None:
         if "enqueue_current" in args:  # the current conf/walk/<backend>.yaml + backend options
             backend_cfg = fconf.load_preset("backend", {"name": name})
             current = {k: base[k] for k in RANGES}
-            keys = (("position_gain_scale", "velocity_gain", "spinning_friction") if name == "pybullet" else
+            keys = (("position_gain_scale", "velocity_gain", "spinning_friction", "solver_iterations") if name == "pybullet" else
                     ("physics_dt", "torsional_friction", "servo_kp_scale", "servo_damping_scale", "servo_kv"))
             current.update({k: backend_cfg[k] for k in keys})
             study.enqueue_trial(current, skip_if_exists=True)
