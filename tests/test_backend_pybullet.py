@@ -66,6 +66,25 @@ def test_short_walk_moves_forward_without_falling(backend):
     assert abs(result.pose.y - start.y) < 0.25
 
 
+@pytest.mark.parametrize("direction", [1, -1])
+def test_max_turns_do_not_fall_and_turn_as_commanded(backend, direction):
+    """Max turns fell on PyBullet until it got 60 solver iterations (conf/backend/pybullet.yaml):
+    8 double steps of max turn must not fall and must turn within the walk check's 25 % of the
+    planar footstep geometry's yaw (the 2D backend executing the same actions)."""
+    from footsim.walkcheck import Sequence, run_sequence
+
+    turn = Sequence("turn", np.tile([0, 0, direction, 0, 0, direction], (8, 1)).astype(float), "yaw")
+    planar = make_backend("pymunk")
+    try:
+        commanded = run_sequence(planar, turn)["yaw"]
+    finally:
+        planar.close()
+    executed = run_sequence(backend, turn)
+    assert not executed["fell"] and executed["sim_error"] is None
+    assert abs(commanded) > 10.0  # 8 x 2 x 0.764 rad, less the start step's shorter turn
+    assert abs(executed["yaw"] - commanded) < 0.25 * abs(commanded)
+
+
 def _trajectory(seed, warmup_seed=None):
     env = FootstepEnv(backend="pybullet", obstacles=True)
     try:
