@@ -155,7 +155,9 @@ def test_experiment_presets_compose():
     cfg = _compose("+experiment=thesis_2d_obstacles", "noise=localization")
     assert (cfg.task.name, cfg.noise.name) == ("nav_obstacles", "localization")
     cfg = _compose("+experiment=thesis_3d")
-    assert (cfg.backend.name, cfg.hydra.runtime.choices.walk, cfg.task.name, cfg.noise.name) == ("pybullet", "pybullet", "nav", "none")
+    assert (cfg.backend.name, cfg.hydra.runtime.choices.walk, cfg.task.name, cfg.noise.name) == ("mujoco", "mujoco", "nav", "none")
+    cfg = _compose("+experiment=thesis_3d", "backend=pybullet")  # the walk follows the backend
+    assert (cfg.backend.name, cfg.hydra.runtime.choices.walk, cfg.walk.freq) == ("pybullet", "pybullet", 0.819559)
     cfg = _compose("+experiment=dr_mujoco")
     assert (cfg.backend.name, cfg.hydra.runtime.choices.walk, cfg.noise.name, cfg.randomization.name) == (
         "mujoco", "mujoco", "localization", "default")
