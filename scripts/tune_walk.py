@@ -46,9 +46,6 @@ START = {"freq": 1.0, "double_support_ratio": 0.05, "foot_distance": 0.1799, "fo
          "servo_kv": 4.0}
 
 
-# Per-backend range changes (none since session 4: PyBullet walks MuJoCo's gait, conf/walk/pybullet.yaml).
-RANGE_OVERRIDES: dict[str, dict[str, tuple[float, float]]] = {}
-
 # Gains of footsim.backends.physics3d.TrunkStabilizer [rad per rad of trunk error]; hand scans
 # on MuJoCo: hip roll 0.3-0.5 helps the lateral sequences, pitch gains alone do not.
 STABILIZER_RANGES = {"hip_roll": (0.0, 1.2), "hip_pitch": (-0.5, 1.0), "ankle_roll": (-0.5, 0.5), "ankle_pitch": (-0.5, 0.5)}
@@ -101,7 +98,7 @@ def main(argv: list[str]) -> None:
 
     def objective(trial):
         walk = dict(base, **FIXED)
-        for key, (lo, hi) in dict(RANGES, **RANGE_OVERRIDES.get(name, {})).items():
+        for key, (lo, hi) in RANGES.items():  # one range set: every 3D backend walks MuJoCo's gait (session 4)
             walk[key] = trial.suggest_float(key, lo, hi)
         if name == "pybullet":  # Bullet's motor and contact knobs (conf/backend/pybullet.yaml)
             options = {"position_gain_scale": trial.suggest_float("position_gain_scale", 2.0, 12.0),

@@ -6,8 +6,8 @@ import math
 import subprocess
 
 import pytest
-from omegaconf import OmegaConf
 from hydra import compose, initialize_config_dir
+from omegaconf import OmegaConf
 
 from footsim.config import conf_dir
 
@@ -46,12 +46,13 @@ def test_walktune_composes_the_backends_walk_and_the_hpo_presets():
 def test_walktune_returns_a_finite_objective_on_pybullet(tmp_path):
     from footsim.walktune import WEIGHTS, run
 
-    result = run(_compose("backend=pybullet", *TINY), tmp_path)
+    cfg = _compose("backend=pybullet", *TINY)
+    result = run(cfg, tmp_path)
     assert result["stands"] and math.isfinite(result["objective"])
     assert result["objective"] == pytest.approx(sum(WEIGHTS[t] * result[t] for t in WEIGHTS))
     # forward at half the step limit commands 2 * freq * 0.5 * 0.156 m/s (0.128 m/s at 0.82 Hz); one
     # measured double step right after the start step covers at least 30 % of it
-    commanded = 2 * cfg_freq() * 0.5 * 0.156
+    commanded = 2 * cfg.walk.freq * 0.5 * 0.156
     assert result["v_forward"] > 0.3 * commanded
     saved = json.loads((tmp_path / "walktune.json").read_text())
     assert saved["objective"] == result["objective"] and set(saved["directions"]) == {"forward", "backward", "left",
@@ -59,10 +60,6 @@ def test_walktune_returns_a_finite_objective_on_pybullet(tmp_path):
     # a walk the backend rejects (feet overlapping when turning) scores 0, it does not crash the trial
     bad = run(_compose("backend=pybullet", "walk.foot_distance=0.12", *TINY))
     assert bad["objective"] == 0.0 and not bad["stands"] and "foot_distance" in bad["invalid"]
-
-
-def cfg_freq() -> float:
-    return float(_compose("backend=pybullet").walk.freq)
 
 
 def test_walktune_rejects_the_2d_backend():
@@ -88,7 +85,7 @@ def test_two_trial_walk_sweep_completes(tmp_path):
     assert proc.returncode == 0, f"{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
     trials = optuna.load_study(study_name="walk_pybullet", storage=storage).trials
     assert [t.state.name for t in trials] == ["COMPLETE", "COMPLETE"]
-    assert trials[0].params["walk.freq"] == pytest.approx(cfg_freq()) and trials[0].value > 0  # the enqueued preset
+    assert trials[0].params["walk.freq"] == pytest.approx(_compose("backend=pybullet").walk.freq) and trials[0].value > 0  # the enqueued preset
     for t in trials:
         assert math.isfinite(t.value) and t.user_attrs["objective"] == pytest.approx(t.value)  # walktune.json
         assert (sweep / str(t.number) / "walktune.json").is_file()
