@@ -147,7 +147,7 @@ def test_model_options_match_the_mujoco_backend(backend):
     from footsim.config import load_preset
 
     cfg = load_preset("backend", "dm_control")
-    options = {k: cfg[k] for k in ("torsional_friction", "servo_kp_scale", "servo_damping_scale", "servo_kv",
+    options = {k: cfg[k] for k in ("torsional_friction", "rolling_friction", "servo_kp_scale", "servo_damping_scale", "servo_kv",
                                    "physics_dt", "control_dt", "integrator")}
     ours = backend.sim.physics.model.ptr
     theirs = MujocoBackend(backend.robot, backend.walk, **options)  # the MuJoCo backend given the same options
@@ -159,8 +159,9 @@ def test_model_options_match_the_mujoco_backend(backend):
         assert ours.opt.integrator == ref.opt.integrator and ours.opt.timestep == ref.opt.timestep
         feet = [backend.sim.physics.bind(g).element_id for s in ("left", "right")
                 for g in backend.sim.mjcf_model.find("body", backend.robot.foot_link(s)).get_children("geom")]
-        assert feet and all(ours.geom_condim[g] == 4 for g in feet)
+        assert feet and all(ours.geom_condim[g] == 6 for g in feet)  # torsional and rolling friction
         assert all(ours.geom_friction[g, 1] == pytest.approx(cfg["torsional_friction"]) for g in feet)
+        assert all(ours.geom_friction[g, 2] == pytest.approx(cfg["rolling_friction"]) for g in feet)
     finally:
         theirs.close()
     with pytest.raises(ValueError, match="servo_kp_scale"):

@@ -207,3 +207,31 @@ def test_many_resets_and_create_close_cycles_do_not_leak(backend):
     end = _rss_mb()
     assert after_resets - before < 10.0
     assert end - mid < 20.0, f"RSS grew {end - mid:.1f} MB over 60 create/close cycles"
+
+
+def test_random_steps_do_not_fall_and_rolling_friction_is_why(backend):
+    """Uniform random double steps over the full limits (the walk check's hardest sequence).
+
+    Without rolling friction on the feet the trunk pitches forward after step reversals: seed 2008
+    fell at double step 3, and every one of 20 random sequences fell (docs/RESULTS.md, session 5)."""
+    from footsim import config as fconf
+
+    def fall_step(b, seed, n):
+        b.reset(EMPTY, np.random.default_rng(0))
+        for i, action in enumerate(np.random.default_rng(seed).uniform(-1, 1, size=(n, 6))):
+            result = b.execute(DoubleStep.from_action(action, b.robot.step_limits))
+            assert result.sim_error is None
+            if result.fell:
+                return i + 1
+        return None
+
+    assert backend.sim.rolling_friction == pytest.approx(0.15)
+    assert [fall_step(backend, seed, 25) for seed in (2008, 2014)] == [None, None]
+    options = {**fconf.load_preset("backend", "mujoco"), "rolling_friction": None}
+    options.pop("name")
+    no_rolling = MujocoBackend(backend.robot, backend.walk, **options)
+    try:
+        assert no_rolling.sim.model.geom_condim.max() == 4  # feet: torsional friction only
+        assert fall_step(no_rolling, 2008, 25) is not None
+    finally:
+        no_rolling.close()

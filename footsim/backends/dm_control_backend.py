@@ -54,12 +54,13 @@ from footsim.backends.mujoco_backend import (
     draw_overlay,
     fatal_warning_ids,
     fatal_warning_message,
+    foot_contact,
     levelling_quat,
     obstacle_geometry,
 )
 from footsim.backends.mujoco_randomization import MujocoRandomization
 from footsim.backends.physics3d import Physics3DBackend, PhysicsSim, quat_to_matrix
-from footsim.robots.mjcf import CONTACT_FRICTION, FREE_JOINT, build_mjcf, sole_site
+from footsim.robots.mjcf import FREE_JOINT, build_mjcf, sole_site
 from footsim.robots.spec import RobotSpec
 from footsim.tasks.scenes import Scene
 from footsim.walk.ik import LEG_JOINT_NAMES
@@ -148,13 +149,11 @@ class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # rand
 
     def _apply_model_options(self, model, robot: RobotSpec) -> None:
         """The MuJoCo backend's model options, as edits of the mjcf tree (see conf/backend/dm_control.yaml)."""
-        if self.torsional_friction is not None:  # feet: torsional friction (condim 4) against spinning
-            for side in ("left", "right"):
-                for geom in model.find("body", robot.foot_link(side)).get_children("geom"):
-                    friction = list(geom.friction) if geom.friction is not None else list(CONTACT_FRICTION)
-                    friction += list(CONTACT_FRICTION[len(friction):])  # MJCF may omit trailing values
-                    friction[1] = self.torsional_friction
-                    geom.condim, geom.friction = 4, friction
+        for side in ("left", "right"):  # feet: torsional / rolling friction (condim 4 / 6)
+            for geom in model.find("body", robot.foot_link(side)).get_children("geom"):
+                contact = foot_contact(geom.friction, self.torsional_friction, self.rolling_friction)
+                if contact is not None:
+                    geom.condim, geom.friction = contact
         if self.servo_kp_scale != 1.0:  # position actuators (general, affine bias): force = kp (ctrl - q)
             for name in robot.joint_names:
                 actuator = model.find("actuator", name)

@@ -24,7 +24,7 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
 from footsim.backends.base import RenderOverlay
 from footsim.backends.mujoco_randomization import MujocoRandomization
 from footsim.backends.physics3d import Physics3DBackend, PhysicsSim
-from footsim.robots.mjcf import FREE_JOINT, build_mjcf, import_mujoco
+from footsim.robots.mjcf import CONTACT_FRICTION, FREE_JOINT, build_mjcf, import_mujoco
 from footsim.robots.spec import RobotSpec
 from footsim.tasks.scenes import Scene
 from footsim.walk.ik import LEG_JOINT_NAMES
@@ -50,8 +50,7 @@ CAMERA_DISTANCE, CAMERA_ELEVATION, CAMERA_AZIMUTH = 2.5, -30.0, -150.0
 def check_model_options(torsional_friction: float | None, servo_kp_scale: float,
                         servo_damping_scale: float) -> tuple[float | None, float, float]:
     """Validate the backend's model options; returns them as floats (torsional friction may be None)."""
-    if torsional_friction is not None and not (math.isfinite(torsional_friction) and torsional_friction >= 0):
-        raise ValueError(f"backend.torsional_friction must be >= 0 (or null), got {torsional_friction!r}")
+    _check_friction("torsional_friction", torsional_friction)
     if not (math.isfinite(servo_kp_scale) and servo_kp_scale > 0):
         raise ValueError(f"backend.servo_kp_scale must be > 0, got {servo_kp_scale!r}")
     if not (math.isfinite(servo_damping_scale) and servo_damping_scale >= 0):
@@ -85,6 +84,27 @@ class ServoFeedForward:
         out = targets + self.gain * (targets - self.previous)
         self.previous = targets
         return out
+
+
+def _check_friction(key: str, value: float | None) -> None:
+    if value is not None and not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+        raise ValueError(f"backend.{key} must be >= 0 (or null), got {value!r}")
+
+
+def foot_contact(friction, torsional_friction: float | None, rolling_friction: float | None) -> tuple[int, list[float]] | None:
+    """``(condim, friction)`` of a foot geom with these options, or None to leave it as built.
+
+    Torsional friction needs condim 4, rolling friction condim 6 (MuJoCo: torque limits of
+    ``coefficient × normal force``, like Bullet's spinning / rolling friction)."""
+    if torsional_friction is None and rolling_friction is None:
+        return None
+    friction = list(friction) if friction is not None else list(CONTACT_FRICTION)
+    friction += list(CONTACT_FRICTION[len(friction):])  # MJCF may omit trailing values
+    if torsional_friction is not None:
+        friction[1] = torsional_friction
+    if rolling_friction is not None:
+        friction[2] = rolling_friction
+    return (4 if rolling_friction is None else 6), [float(f) for f in friction]
 
 
 def quat_fused_roll_pitch(quat) -> tuple[float, float]:
@@ -174,13 +194,16 @@ class MujocoModelOptions:
     """The backend options both MuJoCo-engine sims (raw bindings, dm-control) take, validated once."""
 
     def __init__(self, integrator: str = "implicitfast", max_render_size: int = 1024,
-                 torsional_friction: float | None = None, servo_kp_scale: float = 1.0,
-                 servo_damping_scale: float = 1.0, servo_kv: float = 0.0, control_dt: float = 0.01):
+                 torsional_friction: float | None = None, rolling_friction: float | None = None,
+                 servo_kp_scale: float = 1.0, servo_damping_scale: float = 1.0, servo_kv: float = 0.0,
+                 control_dt: float = 0.01):
         if integrator not in INTEGRATORS:
             raise ValueError(f"backend.integrator must be one of {', '.join(INTEGRATORS)}; got {integrator!r}")
         self.integrator = integrator
         self.torsional_friction, self.servo_kp_scale, self.servo_damping_scale = check_model_options(
             torsional_friction, servo_kp_scale, servo_damping_scale)
+        _check_friction("rolling_friction", rolling_friction)
+        self.rolling_friction = None if rolling_friction is None else float(rolling_friction)
         ServoFeedForward(servo_kv, np.ones(1), control_dt)  # validates servo_kv and control_dt
         self.servo_kv, self.control_dt = float(servo_kv), float(control_dt)
         self._feed_forward: ServoFeedForward | None = None  # when servo_kv > 0
@@ -214,12 +237,11 @@ class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomi
             geom.contype = geom.conaffinity = _OBSTACLE_BIT
         self.model = m = spec.compile()
         self.robot = robot
-        if self.torsional_friction is not None:  # feet: torsional friction (condim 4) against spinning
-            feet = {mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, robot.foot_link(s)) for s in ("left", "right")}
-            for g in range(m.ngeom):
-                if int(m.geom_bodyid[g]) in feet:
-                    m.geom_condim[g] = 4
-                    m.geom_friction[g, 1] = self.torsional_friction
+        feet = {mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, robot.foot_link(s)) for s in ("left", "right")}
+        for g in range(m.ngeom):  # feet: torsional / rolling friction (condim 4 / 6)
+            contact = foot_contact(m.geom_friction[g], self.torsional_friction, self.rolling_friction)
+            if contact is not None and int(m.geom_bodyid[g]) in feet:
+                m.geom_condim[g], m.geom_friction[g] = contact
         if self.servo_kp_scale != 1.0:  # position actuators: force = kp (ctrl - q)
             m.actuator_gainprm[:, 0] *= self.servo_kp_scale
             m.actuator_biasprm[:, 1] *= self.servo_kp_scale
