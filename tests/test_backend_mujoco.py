@@ -235,3 +235,25 @@ def test_random_steps_do_not_fall_and_rolling_friction_is_why(backend):
         assert fall_step(no_rolling, 2008, 25) is not None
     finally:
         no_rolling.close()
+
+
+def test_evaluation_counts_obstacle_contacts():
+    """episodes.csv's contact_steps and the summary's contact share (3D contacts are not outcomes)."""
+    from footsim.rl.evaluate import run_episode, summarize
+
+    class Forward:
+        def reset(self, scene, info):
+            pass
+
+        def __call__(self, obs, info):
+            return FORWARD
+
+    blocked = Scene(goal=Pose2D(2.0, 0.0, 0.0), obstacles=(Obstacle(0.35, 0.0, 0.15),))
+    clear = Scene(goal=Pose2D(2.0, 0.0, 0.0), obstacles=(Obstacle(0.35, 1.5, 0.15),))
+    env = FootstepEnv(backend="mujoco", task={"name": "nav_obstacles", "max_steps": 4})
+    try:
+        records = [run_episode(env, Forward(), scene, seed=0)[0] for scene in (blocked, clear)]
+    finally:
+        env.close()
+    assert records[0]["contact_steps"] >= 1 and records[1]["contact_steps"] == 0
+    assert summarize(records)["contact"] == 0.5

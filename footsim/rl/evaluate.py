@@ -47,10 +47,12 @@ def run_episode(env, controller: Controller, scene: Scene, seed: int, record_fra
     obs, info = env.reset(seed=seed, options={"scene": scene})
     controller.reset(scene, info)
     total = 0.0
+    contact_steps = 0  # 3D: double steps with a robot-obstacle contact (they do not end the episode)
     frames = [env.render()] if record_frames else []
     while True:
         obs, reward, terminated, truncated, info = env.step(controller(obs, info))
         total += reward
+        contact_steps += bool(info.get("collided", False))
         if record_frames:
             frames.append(env.render())
         if terminated or truncated:
@@ -61,6 +63,7 @@ def run_episode(env, controller: Controller, scene: Scene, seed: int, record_fra
         "time_s": float(info["time_s"]),
         "steps": int(info["steps"]),
         "return": float(total),
+        "contact_steps": contact_steps,
         "final_x": float(pose[0]), "final_y": float(pose[1]), "final_theta": float(pose[2]),
         "goal_x": scene.goal.x, "goal_y": scene.goal.y, "goal_theta": scene.goal.theta,
     }
@@ -112,6 +115,8 @@ def summarize(records: list[dict]) -> dict:
     summary["success_time_std"] = float(times.std()) if ok else math.nan
     summary["success_steps_mean"] = float(steps.mean()) if ok else math.nan
     summary["success_steps_std"] = float(steps.std()) if ok else math.nan
+    # Share of episodes with any robot-obstacle contact (in 3D contacts do not end the episode).
+    summary["contact"] = sum(r.get("contact_steps", 0) > 0 for r in records) / n if n else 0.0
     return summary
 
 
