@@ -257,3 +257,29 @@ def test_evaluation_counts_obstacle_contacts():
         env.close()
     assert records[0]["contact_steps"] >= 1 and records[1]["contact_steps"] == 0
     assert summarize(records)["contact"] == 0.5
+
+
+def test_obstacle_inflation_widens_obstacles_in_the_physics_only():
+    """backend.obstacle_inflation: an obstacle beside the path is touched only when inflated; the
+    observation (rays from the scene's radius) is the same either way."""
+    beside = Scene(goal=Pose2D(2.0, 0.0, 0.0), obstacles=(Obstacle(0.45, 0.32, 0.1),))
+
+    def walk(inflation):
+        env = FootstepEnv(backend={"name": "mujoco", "obstacle_inflation": inflation}, obstacles=True)
+        try:
+            obs, _ = env.reset(seed=0, options={"scene": beside})
+            contacts = []
+            for _ in range(4):
+                _, _, term, _, info = env.step(FORWARD)
+                contacts.append(info["collided"])
+            return obs, contacts, env.backend.sim.model.geom_size[env.backend.sim._obstacle_geoms[0], 0]
+        finally:
+            env.close()
+
+    obs, contacts, radius = walk(0.0)
+    obs_inflated, contacts_inflated, radius_inflated = walk(0.1)
+    assert not any(contacts) and any(contacts_inflated)
+    assert radius == pytest.approx(0.1) and radius_inflated == pytest.approx(0.2)
+    np.testing.assert_array_equal(obs, obs_inflated)
+    with pytest.raises(ValueError, match="obstacle_inflation"):
+        FootstepEnv(backend={"name": "mujoco", "obstacle_inflation": -0.1}, obstacles=True)

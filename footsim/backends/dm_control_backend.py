@@ -189,7 +189,8 @@ class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # rand
             placed.append((self._pool[-1], scene.ball, True))
         for geom, obstacle, ball in placed:
             bound = self.physics.bind(geom)
-            bound.size, bound.pos, bound.rbound, bound.aabb = obstacle_geometry(obstacle.x, obstacle.y, obstacle.r, ball)
+            bound.size, bound.pos, bound.rbound, bound.aabb = obstacle_geometry(
+                obstacle.x, obstacle.y, obstacle.r + self.obstacle_inflation, ball)
             bound.contype = bound.conaffinity = _OBSTACLE_BIT
             bound.rgba[3] = 1.0
 

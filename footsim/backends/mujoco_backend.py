@@ -196,7 +196,7 @@ class MujocoModelOptions:
     def __init__(self, integrator: str = "implicitfast", max_render_size: int = 1024,
                  torsional_friction: float | None = None, rolling_friction: float | None = None,
                  servo_kp_scale: float = 1.0, servo_damping_scale: float = 1.0, servo_kv: float = 0.0,
-                 control_dt: float = 0.01):
+                 obstacle_inflation: float = 0.0, control_dt: float = 0.01):
         if integrator not in INTEGRATORS:
             raise ValueError(f"backend.integrator must be one of {', '.join(INTEGRATORS)}; got {integrator!r}")
         self.integrator = integrator
@@ -204,6 +204,13 @@ class MujocoModelOptions:
             torsional_friction, servo_kp_scale, servo_damping_scale)
         _check_friction("rolling_friction", rolling_friction)
         self.rolling_friction = None if rolling_friction is None else float(rolling_friction)
+        if not (isinstance(obstacle_inflation, (int, float)) and math.isfinite(obstacle_inflation) and obstacle_inflation >= 0):
+            raise ValueError(f"backend.obstacle_inflation must be >= 0 [m], got {obstacle_inflation!r}")
+        # Obstacles (and the ball) are this much wider in the physics than in the scene: a training
+        # option, with collision_ends_episode it ends episodes that pass closer than this.
+        # (MuJoCo's geom margin = gap would report near misses without force, but in MuJoCo 3.17
+        # the walk still changed when such excluded contacts existed.)
+        self.obstacle_inflation = float(obstacle_inflation)
         ServoFeedForward(servo_kv, np.ones(1), control_dt)  # validates servo_kv and control_dt
         self.servo_kv, self.control_dt = float(servo_kv), float(control_dt)
         self._feed_forward: ServoFeedForward | None = None  # when servo_kv > 0
@@ -294,7 +301,8 @@ class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomi
 
     def _place(self, geom: int, x: float, y: float, r: float, ball: bool) -> None:
         m = self.model
-        m.geom_size[geom], m.geom_pos[geom], m.geom_rbound[geom], m.geom_aabb[geom] = obstacle_geometry(x, y, r, ball)
+        m.geom_size[geom], m.geom_pos[geom], m.geom_rbound[geom], m.geom_aabb[geom] = obstacle_geometry(
+            x, y, r + self.obstacle_inflation, ball)
         m.geom_contype[geom] = m.geom_conaffinity[geom] = _OBSTACLE_BIT
         m.geom_rgba[geom, 3] = 1.0
 
