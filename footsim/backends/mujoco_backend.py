@@ -50,7 +50,7 @@ CAMERA_DISTANCE, CAMERA_ELEVATION, CAMERA_AZIMUTH = 2.5, -30.0, -150.0
 def check_model_options(torsional_friction: float | None, servo_kp_scale: float,
                         servo_damping_scale: float) -> tuple[float | None, float, float]:
     """Validate the backend's model options; returns them as floats (torsional friction may be None)."""
-    _check_friction("torsional_friction", torsional_friction)
+    _check_non_negative("torsional_friction", torsional_friction, allow_none=True)
     if not (math.isfinite(servo_kp_scale) and servo_kp_scale > 0):
         raise ValueError(f"backend.servo_kp_scale must be > 0, got {servo_kp_scale!r}")
     if not (math.isfinite(servo_damping_scale) and servo_damping_scale >= 0):
@@ -86,9 +86,11 @@ class ServoFeedForward:
         return out
 
 
-def _check_friction(key: str, value: float | None) -> None:
-    if value is not None and not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-        raise ValueError(f"backend.{key} must be >= 0 (or null), got {value!r}")
+def _check_non_negative(key: str, value: float | None, allow_none: bool = False) -> None:
+    if value is None and allow_none:
+        return
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+        raise ValueError(f"backend.{key} must be >= 0{' (or null)' if allow_none else ''}, got {value!r}")
 
 
 def foot_contact(friction, torsional_friction: float | None, rolling_friction: float | None) -> tuple[int, list[float]] | None:
@@ -202,10 +204,9 @@ class MujocoModelOptions:
         self.integrator = integrator
         self.torsional_friction, self.servo_kp_scale, self.servo_damping_scale = check_model_options(
             torsional_friction, servo_kp_scale, servo_damping_scale)
-        _check_friction("rolling_friction", rolling_friction)
+        _check_non_negative("rolling_friction", rolling_friction, allow_none=True)
         self.rolling_friction = None if rolling_friction is None else float(rolling_friction)
-        if not (isinstance(obstacle_inflation, (int, float)) and math.isfinite(obstacle_inflation) and obstacle_inflation >= 0):
-            raise ValueError(f"backend.obstacle_inflation must be >= 0 [m], got {obstacle_inflation!r}")
+        _check_non_negative("obstacle_inflation", obstacle_inflation)
         # Obstacles (and the ball) are this much wider in the physics than in the scene: a training
         # option, with collision_ends_episode it ends episodes that pass closer than this.
         # (MuJoCo's geom margin = gap would report near misses without force, but in MuJoCo 3.17
@@ -245,9 +246,9 @@ class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomi
         self.model = m = spec.compile()
         self.robot = robot
         feet = {mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, robot.foot_link(s)) for s in ("left", "right")}
-        for g in range(m.ngeom):  # feet: torsional / rolling friction (condim 4 / 6)
+        for g in (g for g in range(m.ngeom) if int(m.geom_bodyid[g]) in feet):  # torsional / rolling friction
             contact = foot_contact(m.geom_friction[g], self.torsional_friction, self.rolling_friction)
-            if contact is not None and int(m.geom_bodyid[g]) in feet:
+            if contact is not None:
                 m.geom_condim[g], m.geom_friction[g] = contact
         if self.servo_kp_scale != 1.0:  # position actuators: force = kp (ctrl - q)
             m.actuator_gainprm[:, 0] *= self.servo_kp_scale
