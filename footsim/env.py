@@ -124,6 +124,7 @@ class FootstepEnv(gym.Env):
         self._prev_actions = (_ZERO_ACTION, _ZERO_ACTION)  # a(t-1), a(t-2) as lists of 6 floats
         self._tilt = _ZERO_TILT  # (roll, pitch, max tilt) of the last step, for task.observe_imu
         self._path_hint: nav.PathHint | None = None  # task.path_hint: planned at reset
+        self._arrays: tuple[np.ndarray, np.ndarray] | None = None  # nav.scene_arrays(scene), built at reset
         self._steps = 0
         self._time = 0.0
         self._pose = Pose2D()
@@ -162,8 +163,9 @@ class FootstepEnv(gym.Env):
         self.noise.reset(self._noise_rng)  # per-episode bias, empty delay buffer
         self._believed = self.noise.believe(self._pose, self._noise_rng)
         self._path_hint = nav.PathHint(self.scene, self._pose, self.task) if self.task.path_hint else None
+        self._arrays = nav.scene_arrays(self.scene)  # the obstacles for the compiled kernels, once per episode
         obs = nav.observation(self._believed, self.scene, self._prev_actions, self.task, None, self._tilt,
-                              self._hint())
+                              self._hint(), self._arrays)
         return obs, self._info({})
 
     def step(self, action):
@@ -193,7 +195,7 @@ class FootstepEnv(gym.Env):
             max_tilt = result.max_tilt
             self._tilt = (*result.tilt, max_tilt)
         terms = nav.reward_terms(self._pose, scene, action, self._prev_actions[0], features, max_tilt,
-                                 task.stability_scale)
+                                 task.stability_scale, self._arrays)
         reward = nav.weighted_reward(terms, task.reward_weights)
 
         if result.sim_error is not None:
@@ -212,7 +214,8 @@ class FootstepEnv(gym.Env):
         self._prev_actions = (action, self._prev_actions[0])
         self._believed = self.noise.believe(self._pose, self._noise_rng)
         obs = nav.observation(self._believed, scene, self._prev_actions, task,
-                              features if self._believed is self._pose else None, self._tilt, self._hint())
+                              features if self._believed is self._pose else None, self._tilt, self._hint(),
+                              self._arrays)
         info = self._info(terms, result)
         return obs, float(reward), terminated, truncated, info
 

@@ -6,8 +6,9 @@ a collision is any overlap of a rectangle with a circle — at both put-downs an
 foot's mid-swing pose.  The overlap test is closed-form (:func:`box_hits_circles`: the distance
 from the circle's centre to the rectangle is at most the radius), which is what a pymunk shape
 query of the same polygon against the same circles answers (``tests/test_backend_pymunk2d.py``
-checks the two against each other); :meth:`Pymunk2DBackend.space` builds that pymunk space on
-demand.  The navigation pose is the mean of the two feet.
+checks the two against each other); the six tests of a double step run in one compiled call
+(:func:`footsim.kernels2d.double_step_collides`).  :meth:`Pymunk2DBackend.space` builds that
+pymunk space on demand.  The navigation pose is the mean of the two feet.
 
 ``collision_model="nav_distance"`` is the thesis's own 2D check instead (5.1.1: "the distance to
 the closest obstacle ... below a defined threshold"): the navigation pose at each put-down closer
@@ -24,6 +25,7 @@ from dataclasses import fields
 import numpy as np
 import pymunk
 
+from footsim import kernels2d
 from footsim.backends.base import Backend, RenderOverlay, StepResult
 from footsim.geometry import Pose2D, mean_pose
 from footsim.robots.spec import RobotSpec
@@ -44,21 +46,11 @@ def box_hits_circles(x: float, y: float, theta: float, half_length: float, half_
 
     Closed form of a pymunk shape query of that polygon against static circles: the closest
     point of the rectangle to the circle's centre lies within ``r`` (centre inside: distance 0).
+    The compiled :func:`footsim.kernels2d.box_hits_circles` on any sequence of ``(x, y, r)``
+    (the backend calls the kernels directly, with the episode's circles as an array).
     """
-    c, s = math.cos(theta), math.sin(theta)
-    for cx, cy, r in circles:
-        dx, dy = cx - x, cy - y
-        u = abs(c * dx + s * dy) - half_length  # > 0: outside the rectangle along its length
-        if u > r:
-            continue
-        v = abs(c * dy - s * dx) - half_width
-        if v > r:
-            continue
-        u = u if u > 0.0 else 0.0
-        v = v if v > 0.0 else 0.0
-        if u * u + v * v <= r * r:
-            return True
-    return False
+    return kernels2d.box_hits_circles(float(x), float(y), float(theta), float(half_length), float(half_width),
+                                      kernels2d.circle_array(circles))
 
 
 # ``execute`` builds StepResult positionally (a hot path): make sure the field order is the one used.
@@ -103,13 +95,14 @@ class Pymunk2DBackend(Backend):
         self.geometry = FootstepGeometry(
             robot.step_limits, robot.foot_length, robot.foot_width, walk.foot_distance
         )
-        self._foot_half = (0.5 * robot.foot_length, 0.5 * robot.foot_width)
-        self._trunk_half = tuple(0.5 * v for v in robot.torso_footprint)
+        foot_half = (0.5 * robot.foot_length, 0.5 * robot.foot_width)
+        trunk_half = tuple(0.5 * v for v in robot.torso_footprint)
         # Broad phase: a shape centred farther than its circumradius (+ a rounding margin) from
         # an obstacle can't touch it.
-        self._reach = max(math.hypot(*self._foot_half), math.hypot(*self._trunk_half)) * (1.0 + 1e-9) + 1e-9
+        reach = max(math.hypot(*foot_half), math.hypot(*trunk_half)) * (1.0 + 1e-9) + 1e-9
+        self._dims = np.array([reach, *foot_half, *trunk_half], dtype=np.float64)  # kernels2d.double_step_collides
         self._space: pymunk.Space | None = None
-        self._extents: list[tuple] = []
+        self._circles = kernels2d.circle_array(())  # the scene's (x, y, r), obstacles and ball
         self.feet: FeetState | None = None
         self.history: list[tuple[Side, Pose2D]] = []
         self.nav_history: list[Pose2D] = []
@@ -140,8 +133,7 @@ class Pymunk2DBackend(Backend):
         self.scene = scene
         self._rng = rng
         self._space = None
-        # per circle: its bounding box (broad phase) and (x, y, r)
-        self._extents = [(x - r, x + r, y - r, y + r, (x, y, r)) for x, y, r in scene.circles]
+        self._circles = kernels2d.circle_array(scene.circles)
         self.feet = self.geometry.initial_feet()
         nav = self.feet.nav_pose
         self.history = [(Side.LEFT, self.feet.left), (Side.RIGHT, self.feet.right)]
@@ -175,7 +167,7 @@ class Pymunk2DBackend(Backend):
         sigma = self._noise_sigma
         after_first, after_second, executed, n_interfered = self.geometry.execute(
             before, double_step, self._perturb if (sigma[0] or sigma[1] or sigma[2]) else None)
-        if not self._extents:
+        if not self.scene.circles:
             collided = False
         elif self.collision_model == "footprint":
             collided = self._double_step_collides(before, after_first, after_second)
@@ -215,42 +207,15 @@ class Pymunk2DBackend(Backend):
 
     # -- collisions -----------------------------------------------------------------------
     def _double_step_collides(self, before: FeetState, after_first: FeetState, after_second: FeetState) -> bool:
-        """Each flying foot at mid-swing and at put-down, and the trunk at each put-down.
-
-        Broad phase first: every one of those six shapes is centred inside the bounding box of
-        the four foot positions involved (midpoints and the navigation poses are means of them),
-        so an obstacle farther from that box than its radius plus the larger circumradius can't
-        touch any of them.
-        """
-        start_right, (mid_left, right), end_left = before[1], after_first, after_second[0]
-        x0, x1, x2, x3 = start_right[0], right[0], mid_left[0], end_left[0]
-        y0, y1, y2, y3 = start_right[1], right[1], mid_left[1], end_left[1]
-        reach = self._reach
-        lo_x, hi_x = min(x0, x1, x2, x3) - reach, max(x0, x1, x2, x3) + reach
-        lo_y, hi_y = min(y0, y1, y2, y3) - reach, max(y0, y1, y2, y3) + reach
-        near = [circle for left, right_, bottom, top, circle in self._extents
-                if right_ >= lo_x and left <= hi_x and top >= lo_y and bottom <= hi_y]
-        if not near:
-            return False
-        return (
-            self._swing_collides(start_right, right, mean_pose(mid_left, right), near)
-            or self._swing_collides(mid_left, end_left, mean_pose(end_left, right), near)
-        )
+        """Each flying foot at mid-swing and at put-down, and the trunk at each put-down, in one
+        compiled call (:func:`footsim.kernels2d.double_step_collides`, broad phase included)."""
+        (sx, sy, st), ((mx, my, mt), (rx, ry, rt)), (ex, ey, et) = before[1], after_first, after_second[0]
+        return kernels2d.double_step_collides(self._circles, self._dims, sx, sy, st, rx, ry, rt, mx, my, mt, ex, ey, et)
 
     def _nav_too_close(self, nav: Pose2D) -> bool:
         """Thesis check: the navigation pose within ``collision_distance`` of a circle's edge."""
         x, y, margin = nav[0], nav[1], self.collision_distance
-        return any(math.hypot(x - cx, y - cy) - r < margin for _, _, _, _, (cx, cy, r) in self._extents)
-
-    def _swing_collides(self, start: Pose2D, end: Pose2D, trunk: Pose2D, circles) -> bool:
-        """Flying foot (``start`` → ``end``) at mid-swing and at put-down, and the trunk at put-down."""
-        hl, hw = self._foot_half
-        mid = mean_pose(start, end)
-        return (
-            box_hits_circles(mid[0], mid[1], mid[2], hl, hw, circles)
-            or box_hits_circles(end[0], end[1], end[2], hl, hw, circles)
-            or box_hits_circles(trunk[0], trunk[1], trunk[2], *self._trunk_half, circles)
-        )
+        return any(math.hypot(x - cx, y - cy) - r < margin for cx, cy, r in self.scene.circles)
 
     # -- rendering ------------------------------------------------------------------------
     def render(self, overlay: RenderOverlay | None = None) -> np.ndarray:

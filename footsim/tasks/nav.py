@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from footsim import kernels2d
 from footsim.geometry import Pose2D, wrap_angle
 from footsim.tasks.scenes import Obstacle, Scene
 
@@ -100,7 +101,7 @@ def goal_features(pose: Pose2D, goal: Pose2D) -> tuple[float, float, float]:
 _PI, _TWO_PI, _fmod = math.pi, 2.0 * math.pi, math.fmod
 
 
-_RAY_DIRECTIONS: dict[int, tuple[list[float], list[float]]] = {}
+_RAY_DIRECTIONS: dict[int, np.ndarray] = {}
 
 
 def observation_layout(obstacles: bool, n_rays: int, observe_imu: bool = False,
@@ -116,116 +117,71 @@ def observation_layout(obstacles: bool, n_rays: int, observe_imu: bool = False,
     return tuple(blocks)
 
 
-def _ray_directions(n_rays: int) -> tuple[list[float], list[float]]:
-    """cos and sin of the ray headings ``k·2π/n`` in the robot frame (cached per n)."""
+def _ray_directions(n_rays: int) -> np.ndarray:
+    """cos and sin of the ray headings ``k·2π/n`` in the robot frame, ``(2, n)`` (cached per n)."""
     base = _RAY_DIRECTIONS.get(n_rays)
     if base is None:
-        k = np.arange(n_rays) * (2.0 * math.pi / n_rays)
-        base = _RAY_DIRECTIONS[n_rays] = (np.cos(k).tolist(), np.sin(k).tolist())
+        base = _RAY_DIRECTIONS[n_rays] = kernels2d.ray_directions(n_rays)
     return base
+
+
+def scene_arrays(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+    """``scene.circles`` (obstacles and ball) and ``scene.obstacle_circles`` (no ball) as float64
+    ``(n, 3)`` arrays for the compiled kernels (:mod:`footsim.kernels2d`).
+
+    The env builds them once per episode and passes them to :func:`observation` and
+    :func:`reward_terms`; without them those functions build them from the scene on every call.
+    """
+    circles = kernels2d.circle_array(scene.circles)
+    return circles, circles[:len(scene.obstacles)]  # the ball, if any, is the last row
 
 
 def ray_distances(pose: Pose2D, obstacles: tuple[Obstacle, ...], n_rays: int, max_range: float) -> np.ndarray:
     """Distance along each of ``n_rays`` evenly spaced rays from ``pose`` to the first circle hit.
 
     Ray k points at heading ``pose.theta + k·2π/n``; misses report ``max_range``; an origin inside
-    a circle reports 0.
+    a circle reports 0.  (Compiled: :func:`footsim.kernels2d.scan_rays`.)
     """
-    return np.array(ray_list(pose, tuple((o.x, o.y, o.r) for o in obstacles), n_rays, max_range))
-
-
-def ray_list(pose: Pose2D, circles, n_rays: int, max_range: float) -> list[float]:
-    """:func:`ray_distances` as a list, for circles given as ``(x, y, r)`` tuples."""
-    out = [max_range] * n_rays
-    hit = _ray_scan(pose, circles, n_rays, max_range, out)
-    return [0.0] * n_rays if hit is None else out
-
-
-def ray_hits(pose: Pose2D, circles, n_rays: int, max_range: float) -> dict[int, float] | None:
-    """The rays that hit a circle closer than ``max_range``: ``{ray index: distance}``; ``None``
-    when the origin is inside a circle (every ray reports 0)."""
-    out = [max_range] * n_rays
-    hit = _ray_scan(pose, circles, n_rays, max_range, out)
-    return None if hit is None else {k: out[k] for k in hit}
-
-
-def _ray_scan(pose: Pose2D, circles, n_rays: int, max_range: float, out: list[float]) -> list[int] | None:
-    """Write into ``out`` (``n_rays`` × ``max_range``) each ray's distance to the first circle
-    hit; returns the indices of the rays that hit (possibly repeated), ``None`` when the origin is
-    inside a circle.
-
-    Closed form per ray and circle: with ``u`` the ray's unit direction and ``c`` the circle's
-    centre relative to the origin, ``|t·u − c|² = r²`` gives ``t = u·c − sqrt((u·c)² − (|c|² − r²))``.
-    Only rays within the circle's angular half-width ``asin(r/|c|)`` of its bearing can hit it, so
-    each circle is tested against those rays only (plus a tiny angular margin for rounding), and
-    circles whose nearest point is beyond ``max_range`` are skipped.
-    """
-    n = n_rays
-    hit: list[int] = []
-    if not circles:
-        return hit
-    cos_k, sin_k = _ray_directions(n)
-    px, py, theta = pose
-    c, s = math.cos(theta), math.sin(theta)
-    per_rad = n / (2.0 * math.pi)  # ray index per radian of heading
-    far = max_range + 1e-6 * (1.0 + max_range)
-    sqrt, floor, ceil, atan2, asin = math.sqrt, math.floor, math.ceil, math.atan2, math.asin
-    for ox, oy, r in circles:
-        dx, dy = ox - px, oy - py
-        d2 = dx * dx + dy * dy
-        cc = d2 - r * r  # |c|² − r²
-        if cc <= 0.0:  # the origin is inside (or on) a circle
-            return None
-        dist = sqrt(d2)
-        if dist - r > far:  # every point of the circle is beyond the range
-            continue
-        rx, ry = c * dx + s * dy, c * dy - s * dx  # centre in the robot frame
-        # Rays k with |k − bearing| <= half-width (in ray indices), widened by 1e-3 for rounding.
-        bearing = atan2(ry, rx) * per_rad
-        q = r / dist
-        half = asin(q if q < 1.0 else 1.0) * per_rad + 1e-3
-        lo, hi = ceil(bearing - half), floor(bearing + half)
-        if hi - lo >= n:
-            lo, hi = 0, n - 1
-        for k in (range(lo, hi + 1) if lo >= 0 and hi < n else [k % n for k in range(lo, hi + 1)]):
-            proj = rx * cos_k[k] + ry * sin_k[k]
-            disc = proj * proj - cc
-            if disc >= 0.0:
-                t = proj - sqrt(disc)
-                if 0.0 <= t < out[k]:
-                    out[k] = t
-                    hit.append(k)
-    return hit
+    out = np.empty(int(n_rays))
+    circles = kernels2d.circle_array([(o.x, o.y, o.r) for o in obstacles])
+    kernels2d.scan_rays(float(pose[0]), float(pose[1]), float(pose[2]), circles, _ray_directions(int(n_rays)),
+                        float(max_range), out)
+    return out
 
 
 def nearest_obstacle_distance(pose: Pose2D, obstacles: tuple[Obstacle, ...]) -> float:
     """Distance from the robot centre to the nearest obstacle surface (inf without obstacles)."""
-    return _nearest_circle_distance(pose, [(o.x, o.y, o.r) for o in obstacles])
+    return _nearest_circle_distance(pose, tuple((o.x, o.y, o.r) for o in obstacles))
 
 
-def _nearest_circle_distance(pose: Pose2D, circles) -> float:
-    best = math.inf
+def _nearest_circle_distance(pose: Pose2D, circles: tuple[tuple[float, float, float], ...],
+                             array: np.ndarray | None = None) -> float:
+    """Distance from ``pose`` to the nearest edge of ``circles`` (``array``: the same circles as
+    :func:`footsim.kernels2d.circle_array`); inf without circles.  The kernel picks the circle,
+    ``math.hypot`` gives the distance (the C library's ``hypot`` can differ in the last bit)."""
     px, py = pose[0], pose[1]
-    hypot = math.hypot
-    for ox, oy, r in circles:
-        d = hypot(ox - px, oy - py) - r
-        if d < best:
-            best = d
-    return best
+    k = kernels2d.nearest_circle(px, py, kernels2d.circle_array(circles) if array is None else array)
+    if k < 0:
+        return math.inf
+    ox, oy, r = circles[k]
+    return math.hypot(ox - px, oy - py) - r
 
 
 def reward_terms(pose: Pose2D, scene: Scene, action, previous_action,
                  features: tuple[float, float, float] | None = None,
-                 max_tilt: float | None = None, stability_scale: float = 0.2) -> dict[str, float]:
+                 max_tilt: float | None = None, stability_scale: float = 0.2,
+                 arrays: tuple[np.ndarray, np.ndarray] | None = None) -> dict[str, float]:
     """The five thesis 5.5 reward terms, each in [0, 1]; with ``max_tilt`` (the largest trunk
     roll or pitch during the step, 3D) also ``stability = exp(-max_tilt / stability_scale)``.
 
     The ball is excluded from the obstacle term (it would create a local minimum before the goal).
-    ``features`` may pass ``goal_features(pose, scene.goal)`` already computed by the caller;
-    the actions may be arrays or lists of 6 floats.
+    ``features`` may pass ``goal_features(pose, scene.goal)`` already computed by the caller,
+    ``arrays`` the episode's :func:`scene_arrays`; the actions may be arrays or lists of 6 floats.
     """
     d, alpha, beta = features if features is not None else goal_features(pose, scene.goal)
-    d_obs = _nearest_circle_distance(pose, scene.obstacle_circles)
+    d_obs = math.inf
+    if scene.obstacles:
+        d_obs = _nearest_circle_distance(pose, scene.obstacle_circles, None if arrays is None else arrays[1])
     if d_obs == math.inf:
         r_obs = 1.0
     else:
@@ -271,7 +227,7 @@ def is_success(pose: Pose2D, goal: Pose2D, config: NavTaskConfig,
 def observation(
     believed: Pose2D, scene: Scene, previous_actions, config: NavTaskConfig,
     features: tuple[float, float, float] | None = None, tilt: tuple[float, float, float] = (0.0, 0.0, 0.0),
-    hint: tuple[float, float] = (0.0, 1.0),
+    hint: tuple[float, float] = (0.0, 1.0), arrays: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:
     """17-D (or 53-D with rays) observation from the pose the robot *believes* it has.
 
@@ -279,31 +235,33 @@ def observation(
     with ``config.observe_imu`` then tanh(· / imu_scale) of ``tilt`` = (roll, pitch, max tilt), and
     with ``config.path_hint`` then ``hint`` = (sin, cos) of the bearing to the path's lookahead
     point (:class:`PathHint`).
-    ``previous_actions`` holds a(t−1) and a(t−2), each an array or a list of 6 floats.
+    ``previous_actions`` holds a(t−1) and a(t−2), each an array or a list of 6 floats; ``arrays``
+    may pass the episode's :func:`scene_arrays`.
     """
     d, alpha, beta = features if features is not None else goal_features(believed, scene.goal)
     a1, a2 = previous_actions
     values = [math.tanh(d / config.distance_scale), math.sin(alpha), math.cos(alpha), math.sin(beta), math.cos(beta)]
     values += a1.tolist() if isinstance(a1, np.ndarray) else a1
     values += a2.tolist() if isinstance(a2, np.ndarray) else a2
-    if config.obstacles:
-        n, max_range, scale = int(config.n_rays), config.ray_range, config.ray_scale
-        rays = [max_range] * n
-        hit = _ray_scan(believed, scene.circles, n, max_range, rays)
-        if hit is None:  # inside a circle: every ray reports 0
-            values += [0.0] * n
-        else:
-            start = len(values)
-            values += _misses(n, max_range / scale)
-            tanh = math.tanh
-            for k in hit:
-                values[start + k] = tanh(rays[k] / scale)
+    options = []
     if config.observe_imu:
         scale = config.imu_scale
-        values += [math.tanh(tilt[0] / scale), math.tanh(tilt[1] / scale), math.tanh(tilt[2] / scale)]
+        options += [math.tanh(tilt[0] / scale), math.tanh(tilt[1] / scale), math.tanh(tilt[2] / scale)]
     if config.path_hint:
-        values += [hint[0], hint[1]]
-    return np.array(values, dtype=np.float32)
+        options += [hint[0], hint[1]]
+    if not config.obstacles:
+        return np.array(values + options if options else values, dtype=np.float32)
+    # The ray block goes between the actions and the options: one compiled call (footsim.kernels2d)
+    # writes it into the observation.
+    n, max_range, scale = int(config.n_rays), config.ray_range, config.ray_scale
+    obs = np.empty(17 + n + len(options), dtype=np.float32)
+    obs[:17] = values
+    circles = (arrays if arrays is not None else scene_arrays(scene))[0]
+    kernels2d.ray_observation(believed[0], believed[1], believed[2], circles, _ray_directions(n), max_range, scale,
+                              _miss(max_range / scale), obs, 17)
+    if options:
+        obs[17 + n:] = options
+    return obs
 
 
 class PathHint:
@@ -341,12 +299,12 @@ class PathHint:
         return math.sin(angle), math.cos(angle)
 
 
-_MISSES: dict[tuple[int, float], list[float]] = {}
+_MISSES: dict[float, float] = {}
 
 
-def _misses(n: int, x: float) -> list[float]:
-    """``n`` copies of ``tanh(x)`` (the observation of rays that hit nothing), cached."""
-    value = _MISSES.get((n, x))
+def _miss(x: float) -> float:
+    """``tanh(x)``, the observation of a ray that hits nothing (``x = ray_range / ray_scale``), cached."""
+    value = _MISSES.get(x)
     if value is None:
-        value = _MISSES[(n, x)] = [float(np.tanh(x))] * n
+        value = _MISSES[x] = float(np.tanh(x))
     return value
