@@ -1,17 +1,18 @@
-"""Compiled (numba) float kernels of the 2D env's hot path: ray scan, nearest obstacle distance and
-the rectangle–circle overlaps of a double step.
+"""Compiled (numba) float kernels of the 2D env's hot path: the ray scan, the nearest obstacle,
+the rectangle–circle overlaps of a double step and the footstep placement.
 
 Obstacles come as a C-contiguous float64 ``(n, 3)`` array of ``(x, y, r)`` rows
-(:func:`circle_array`), built once per episode; poses as plain floats.  Every kernel does the same
-float operations in the same order as the pure-Python code it replaced (no fast-math, so no
-contraction into fused multiply-adds), so results are bit-identical; :func:`nearest_circle`
-returns an index so that the caller can take the distance with CPython's ``math.hypot``.  ``tests/test_kernels2d.py`` keeps the
-pure-Python implementations as the reference and checks the kernels against them.
+(:func:`circle_array`), built once per episode; poses and steps as plain floats.  Each kernel
+replaces pure-Python code and does the same float operations in the same order (no fast-math,
+so no contraction into fused multiply-adds), so results are bit-identical;
+:func:`nearest_circle` returns an index so that the caller takes the distance with CPython's
+``math.hypot`` (the C library's ``hypot`` may differ in the last bit).  ``tests/test_kernels2d.py``
+keeps the replaced pure-Python code as the reference and checks the kernels against it.
 
 Compiled code is cached on disk (``cache=True``: ``NUMBA_CACHE_DIR`` if set, else next to this
 file, else numba's user-wide cache directory; without any writable one, each process compiles
-again, with a warning); the first call in a process without a cache compiles (seconds, see
-``docs/BENCHMARKS.md``).  ``NUMBA_DISABLE_JIT=1`` runs them as plain Python.
+again, with a warning).  A process without a cache compiles on first use (seconds, see
+``docs/BENCHMARKS.md``).  ``NUMBA_DISABLE_JIT=1`` runs the kernels as plain Python.
 """
 
 from __future__ import annotations
@@ -223,3 +224,104 @@ def double_step_collides(circles, dims, sx, sy, st, rx, ry, rt, mx, my, mt, ex, 
                 if _box_hits_circle(b[0], b[1], b[2], b[3], b[4], b[5], circles[i, 0], circles[i, 1], circles[i, 2]):
                     return True
     return False
+
+
+# -- footstep placement (footsim.walk.footsteps.FootstepGeometry) ------------------------------
+@_compiled
+def overlap_band(x, c, s, half_l, half_w):
+    """Lateral offsets y at which a foot at ``(x, y, theta)`` (``c, s = cos θ, sin θ``) overlaps an
+    identical foot at the origin: ``(True, lo, hi)``, or ``(False, 0, 0)`` when some axis separates
+    for every y (:func:`footsim.walk.footsteps._overlap_band_y`).
+
+    Separating-axis theorem on the four box axes (1, 0), (0, 1), (c, s), (−s, c): on axis n the
+    boxes overlap iff |n·(x, y)| <= r_support(n) + r_flying(n), which bounds y linearly; the
+    overlap set is the intersection of those bands.
+    """
+    ac, as_ = abs(c), abs(s)
+    # axis (1, 0): bounds x only
+    if abs(x) > half_l + half_l * ac + half_w * as_:
+        return False, 0.0, 0.0
+    # axis (0, 1): |y| <= reach
+    reach = half_w + half_l * as_ + half_w * ac
+    lo, hi = -reach, reach
+    # axis (c, s)
+    reach = half_l * ac + half_w * as_ + half_l * abs(c * c + s * s) + half_w * abs(-c * s + s * c)
+    if as_ < 1e-12:
+        if abs(c * x) > reach:
+            return False, 0.0, 0.0
+    else:
+        a, b = (-reach - c * x) / s, (reach - c * x) / s
+        if a > b:
+            a, b = b, a
+        if a > lo:
+            lo = a
+        if b < hi:
+            hi = b
+        if lo > hi:
+            return False, 0.0, 0.0
+    # axis (−s, c)
+    reach = half_l * as_ + half_w * ac + half_l * abs(-s * c + c * s) + half_w * abs(s * s + c * c)
+    if ac < 1e-12:
+        if abs(-s * x) > reach:
+            return False, 0.0, 0.0
+    else:
+        a, b = (-reach + s * x) / c, (reach + s * x) / c
+        if a > b:
+            a, b = b, a
+        if a > lo:
+            lo = a
+        if b < hi:
+            hi = b
+        if lo > hi:
+            return False, 0.0, 0.0
+    return True, lo, hi
+
+
+@_compiled
+def land(left, x, y, theta, g):
+    """Clip a footstep ``(x, y, theta)`` (relative to the flying foot's resting pose) to the limits
+    and back its lateral offset off to the edge of the overlap band if the feet would come closer
+    than the gap; returns the executed ``(x, y, theta, interfered)``
+    (:meth:`footsim.walk.footsteps.FootstepGeometry.landing`).
+
+    ``g`` = (limit x, limit y, limit theta, foot distance, clear distance, half length and half
+    width of a foot grown by half the gap); ``left``: the left foot flies.
+    """
+    lx, ly, lt, foot_distance, clear, half_l, half_w = g[0], g[1], g[2], g[3], g[4], g[5], g[6]
+    x = -lx if x < -lx else lx if x > lx else x  # clip to the limits (= min(max(v, -l), l))
+    y = -ly if y < -ly else ly if y > ly else y
+    theta = -lt if theta < -lt else lt if theta > lt else theta
+    rest_y = foot_distance if left else -foot_distance
+    if abs(rest_y + y) >= clear:  # farther apart than two circumradii: no overlap
+        return x, y, theta, False
+    c, s = math.cos(theta), math.sin(theta)
+    # The band lies within |y| <= its (0, 1)-axis bound: outside that, no overlap either.
+    if abs(rest_y + y) >= half_w + half_l * abs(s) + half_w * abs(c):
+        return x, y, theta, False
+    overlaps, lo, hi = overlap_band(x, c, s, half_l, half_w)
+    interfered = overlaps and lo < rest_y + y and rest_y + y < hi
+    if interfered:  # the resting side of the band is clear (checked at construction)
+        y = (hi if left else lo) - rest_y
+    return x, y, theta, interfered
+
+
+@_compiled
+def place_footstep(left, sx, sy, st, x, y, theta, g):
+    """:func:`land`, then the landed foot's pose in the world from the support foot's ``(sx, sy,
+    st)``: ``(world x, y, theta, executed x, y, theta, interfered)``."""
+    x, y, theta, interfered = land(left, x, y, theta, g)
+    ry = y + g[3] if left else y - g[3]  # relative to the support foot
+    c, s = math.cos(st), math.sin(st)
+    wrapped = np.fmod(st + theta + math.pi, _TWO_PI)  # wrap_angle(st + theta)
+    if wrapped <= 0.0:
+        wrapped += _TWO_PI
+    return sx + c * x - s * ry, sy + s * x + c * ry, wrapped - math.pi, x, y, theta, interfered
+
+
+@_compiled
+def place_double_step(lx, ly, lt, x1, y1, t1, x2, y2, t2, g):
+    """Both footsteps of a double step from the left foot at ``(lx, ly, lt)``: the right foot
+    flies ``(x1, y1, t1)``, then the left foot ``(x2, y2, t2)`` from where the right one landed.
+    Returns :func:`place_footstep`'s 7 values for the right foot, then for the left foot."""
+    right = place_footstep(False, lx, ly, lt, x1, y1, t1, g)
+    return right + place_footstep(True, right[0], right[1], right[2], x2, y2, t2, g)

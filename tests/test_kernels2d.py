@@ -19,7 +19,7 @@ from footsim.geometry import Pose2D, mean_pose
 from footsim.tasks import nav
 from footsim.tasks.nav import NavTaskConfig
 from footsim.tasks.scenes import Obstacle, Scene, SceneSampler
-from footsim.walk.footsteps import DoubleStep
+from footsim.walk.footsteps import DoubleStep, FeetState, Footstep, FootstepGeometry, Side, StepLimits
 
 ATOL = 1e-12
 
@@ -139,6 +139,36 @@ def _reference_observation(believed, scene, previous_actions, config, tilt=(0.0,
     if config.path_hint:
         values += [hint[0], hint[1]]
     return np.array(values, dtype=np.float32)
+
+
+def _reference_land(geometry, left, x, y, theta):
+    """``FootstepGeometry`` placement as it was in Python: clip, then back the lateral offset off
+    to the edge of the overlap band (the unrolled band is checked against the axis loop in
+    ``tests/test_backend_pymunk2d.py``; the axis loop is used here)."""
+    from footsim.walk.footsteps import _overlap_band_y_reference
+
+    lim = geometry.limits
+    x, y, theta = min(max(x, -lim.x), lim.x), min(max(y, -lim.y), lim.y), min(max(theta, -lim.theta), lim.theta)
+    rest_y = geometry.foot_distance if left else -geometry.foot_distance
+    half_l, half_w = 0.5 * (geometry.foot_length + geometry.min_foot_gap), 0.5 * (geometry.foot_width + geometry.min_foot_gap)
+    band = _overlap_band_y_reference(x, theta, half_l, half_w)
+    interfered = band is not None and band[0] < rest_y + y < band[1]
+    if interfered:
+        y = (band[1] if left else band[0]) - rest_y
+    return x, y, theta, interfered
+
+
+def _reference_execute(geometry, feet, double_step, perturb=None):
+    first, second = double_step
+    x, y, theta, hit_first = _reference_land(geometry, False, *first)
+    right = feet.left.compose(Pose2D(x, y - geometry.foot_distance, theta))
+    right = perturb(right) if perturb else right
+    done_first = Footstep(x, y, theta)
+    x, y, theta, hit_second = _reference_land(geometry, True, *second)
+    left = right.compose(Pose2D(x, y + geometry.foot_distance, theta))
+    left = perturb(left) if perturb else left
+    return (FeetState(feet.left, right), FeetState(left, right), DoubleStep(done_first, Footstep(x, y, theta)),
+            int(hit_first) + int(hit_second))
 
 
 def _reference_obstacle_term(pose, scene):
@@ -339,3 +369,34 @@ def test_double_step_collisions_match_the_python_reference():
             assert result.collided == expected
             outcomes.append(expected)
     assert 200 < sum(outcomes) < len(outcomes) - 200  # both outcomes well represented
+
+
+# -- footstep placement --------------------------------------------------------------------------
+@pytest.mark.parametrize("geometry", [
+    FootstepGeometry(StepLimits()),
+    FootstepGeometry(StepLimits(0.2, 0.15, 1.2), foot_length=0.2, foot_width=0.12, foot_distance=0.26, min_foot_gap=0.0),
+], ids=["wolfgang_like", "other"])
+def test_placement_matches_the_python_reference(geometry):
+    """``landing`` and ``execute`` (with and without a perturbation between the two footsteps)
+    against the Python placement, over the limits and well beyond, inward steps included."""
+    rng = np.random.default_rng(9)
+    limits = np.array([geometry.limits.x, geometry.limits.y, geometry.limits.theta])
+    interfered = 0
+    for i in range(4000):
+        steps = rng.uniform(-1.3, 1.3, (2, 3)) * limits
+        if i % 3 == 0:  # inward steps that make the feet interfere
+            steps[0, 1], steps[1, 1] = abs(steps[0, 1]), -abs(steps[1, 1])
+        double_step = DoubleStep(Footstep(*steps[0].tolist()), Footstep(*steps[1].tolist()))
+        for side, step in ((Side.RIGHT, double_step.first), (Side.LEFT, double_step.second)):
+            pose, done, hit = geometry.landing(side, step)
+            x, y, theta, expected_hit = _reference_land(geometry, side is Side.LEFT, *step)
+            rest_y = geometry.foot_distance if side is Side.LEFT else -geometry.foot_distance
+            assert (pose, done, hit) == (Pose2D(x, rest_y + y, theta), Footstep(x, y, theta), expected_hit)
+            interfered += hit
+        start = Pose2D(*rng.normal(0, 1, 2), rng.uniform(-math.pi, math.pi))
+        feet = geometry.initial_feet(start)
+        assert geometry.execute(feet, double_step) == _reference_execute(geometry, feet, double_step)
+        offset = Pose2D(*rng.normal(0, 0.01, 3))
+        shift = lambda pose: pose.compose(offset)  # noqa: E731  (a deterministic perturbation)
+        assert geometry.execute(feet, double_step, shift) == _reference_execute(geometry, feet, double_step, shift)
+    assert interfered > 500

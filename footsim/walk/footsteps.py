@@ -21,6 +21,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from footsim import kernels2d
 from footsim.geometry import Pose2D, mean_pose
 
 
@@ -143,56 +144,11 @@ class FeetState(NamedTuple):
 
 
 def _overlap_band_y(x: float, theta: float, half_l: float, half_w: float) -> tuple[float, float] | None:
-    """Lateral offsets y at which a foot at (x, y, theta) overlaps an identical foot at the origin.
-
-    Separating-axis theorem on the four box axes: on axis n the boxes overlap iff
-    |n·(x, y)| <= r_support(n) + r_flying(n), which bounds y linearly; the overlap set is the
-    intersection of those bands (an interval), or None when some axis separates for every y.
-    (The four axes (1, 0), (0, 1), (c, s), (−s, c) written out: this runs on most env steps.)
-    """
-    return _overlap_band_cs(x, math.cos(theta), math.sin(theta), half_l, half_w)
-
-
-def _overlap_band_cs(x: float, c: float, s: float, half_l: float, half_w: float) -> tuple[float, float] | None:
-    """:func:`_overlap_band_y` given ``c, s = cos(theta), sin(theta)``."""
-    ac, as_ = abs(c), abs(s)
-    # axis (1, 0): bounds x only
-    if abs(x) > half_l + half_l * ac + half_w * as_:
-        return None
-    # axis (0, 1): |y| <= reach
-    reach = half_w + half_l * as_ + half_w * ac
-    lo, hi = -reach, reach
-    # axis (c, s)
-    reach = half_l * ac + half_w * as_ + half_l * abs(c * c + s * s) + half_w * abs(-c * s + s * c)
-    if as_ < 1e-12:
-        if abs(c * x) > reach:
-            return None
-    else:
-        a, b = (-reach - c * x) / s, (reach - c * x) / s
-        if a > b:
-            a, b = b, a
-        if a > lo:
-            lo = a
-        if b < hi:
-            hi = b
-        if lo > hi:
-            return None
-    # axis (−s, c)
-    reach = half_l * as_ + half_w * ac + half_l * abs(-s * c + c * s) + half_w * abs(s * s + c * c)
-    if ac < 1e-12:
-        if abs(-s * x) > reach:
-            return None
-    else:
-        a, b = (-reach + s * x) / c, (reach + s * x) / c
-        if a > b:
-            a, b = b, a
-        if a > lo:
-            lo = a
-        if b < hi:
-            hi = b
-        if lo > hi:
-            return None
-    return lo, hi
+    """Lateral offsets y at which a foot at (x, y, theta) overlaps an identical foot at the origin:
+    an interval, or None when some axis separates for every y (compiled:
+    :func:`footsim.kernels2d.overlap_band`, the separating-axis theorem on the four box axes)."""
+    overlaps, lo, hi = kernels2d.overlap_band(float(x), math.cos(theta), math.sin(theta), float(half_l), float(half_w))
+    return (lo, hi) if overlaps else None
 
 
 def _overlap_band_y_reference(x: float, theta: float, half_l: float, half_w: float) -> tuple[float, float] | None:
@@ -230,10 +186,14 @@ class FootstepGeometry:
         if self.min_foot_gap < 0:
             raise ValueError(f"FootstepGeometry.min_foot_gap must be >= 0, got {self.min_foot_gap!r}")
         # Derived constants of the hot path (the dataclass is frozen: set once here).
-        object.__setattr__(self, "_clear", math.hypot(self.foot_length + self.min_foot_gap,
-                                                      self.foot_width + self.min_foot_gap))
         object.__setattr__(self, "_half_gapped", (0.5 * (self.foot_length + self.min_foot_gap),
                                                   0.5 * (self.foot_width + self.min_foot_gap)))
+        # For the compiled placement (footsim.kernels2d.land): the limits, the foot distance, the
+        # distance beyond which the feet can't overlap (two circumradii) and the grown half plate.
+        clear = math.hypot(self.foot_length + self.min_foot_gap, self.foot_width + self.min_foot_gap)
+        object.__setattr__(self, "_kernel_params", np.array(
+            [self.limits.x, self.limits.y, self.limits.theta, self.foot_distance, clear, *self._half_gapped],
+            dtype=np.float64))
         # The resting pose must be interference-free at any allowed turn, or the lateral
         # back-off in ``landing`` could not find a valid pose.
         for theta in (-self.limits.theta, self.limits.theta):
@@ -247,10 +207,6 @@ class FootstepGeometry:
         """Feet standing side by side around ``pose`` (the navigation frame)."""
         half = 0.5 * self.foot_distance
         return FeetState(pose.compose(Pose2D(0.0, half, 0.0)), pose.compose(Pose2D(0.0, -half, 0.0)))
-
-    @property
-    def _clear_distance(self) -> float:
-        return self._clear
 
     def _band(self, x: float, theta: float) -> tuple[float, float] | None:
         # Each plate grows by half the gap, so "overlap" means "closer than min_foot_gap".
@@ -270,30 +226,11 @@ class FootstepGeometry:
         foot than the gap, its lateral offset is backed off towards the resting pose to the edge
         of the overlap band — the foot–foot interference that makes inward steps shorter.
         """
-        x, y, theta, interfered = self._land(flying is Side.LEFT, step[0], step[1], step[2])
-        return Pose2D(x, (self.foot_distance if flying is Side.LEFT else -self.foot_distance) + y, theta), \
+        left = flying is Side.LEFT
+        x, y, theta, interfered = kernels2d.land(left, float(step[0]), float(step[1]), float(step[2]),
+                                                 self._kernel_params)
+        return Pose2D(x, (self.foot_distance if left else -self.foot_distance) + y, theta), \
             Footstep(x, y, theta), interfered
-
-    def _land(self, left: bool, x: float, y: float, theta: float) -> tuple[float, float, float, bool]:
-        """:meth:`landing` on plain floats: the executed ``(x, y, theta)`` and whether it interfered."""
-        lim = self.limits
-        lx, ly, lt = lim.x, lim.y, lim.theta  # clip to the limits (= min(max(v, -l), l))
-        x = -lx if x < -lx else lx if x > lx else x
-        y = -ly if y < -ly else ly if y > ly else y
-        theta = -lt if theta < -lt else lt if theta > lt else theta
-        rest_y = self.foot_distance if left else -self.foot_distance
-        if abs(rest_y + y) >= self._clear:  # farther apart than two circumradii: no overlap
-            return x, y, theta, False
-        half_l, half_w = self._half_gapped
-        c, s = math.cos(theta), math.sin(theta)
-        # The band lies within |y| <= its (0, 1)-axis bound: outside that, no overlap either.
-        if abs(rest_y + y) >= half_w + half_l * abs(s) + half_w * abs(c):
-            return x, y, theta, False
-        band = _overlap_band_cs(x, c, s, half_l, half_w)
-        interfered = band is not None and band[0] < rest_y + y < band[1]
-        if interfered:  # the resting side of the band is clear (checked at construction)
-            y = (band[1] if left else band[0]) - rest_y
-        return x, y, theta, interfered
 
     def execute(self, feet: FeetState, double_step: DoubleStep, perturb=None):
         """Place both footsteps of a double step.
@@ -303,33 +240,23 @@ class FootstepGeometry:
         step, feet after the second, executed DoubleStep, number of interfering steps)``.
         """
         # The right foot flies first (left support), then the left foot (right support).
-        # Plain floats and tuple.__new__ below: this runs on every 2D env step.
+        # Compiled placement (footsim.kernels2d), tuple.__new__ below: this runs on every 2D env step.
         first, second = double_step
-        left = feet[0]
-        x, y, theta, hit_first = self._land(False, first[0], first[1], first[2])
-        right = _place(left, x, y - self.foot_distance, theta)
-        if perturb is not None:
-            right = perturb(right)
-        done_first = _new(Footstep, (x, y, theta))
-        x, y, theta, hit_second = self._land(True, second[0], second[1], second[2])
-        left = _place(right, x, y + self.foot_distance, theta)
-        if perturb is not None:
-            left = perturb(left)
+        left, g = feet[0], self._kernel_params
+        if perturb is None:  # both footsteps in one call
+            (rx, ry, rt, x1, y1, t1, hit_first, lx, ly, lt, x2, y2, t2, hit_second) = kernels2d.place_double_step(
+                left[0], left[1], left[2], first[0], first[1], first[2], second[0], second[1], second[2], g)
+            right, left = _new(Pose2D, (rx, ry, rt)), _new(Pose2D, (lx, ly, lt))
+        else:  # the next step starts from where the perturbed foot really is
+            rx, ry, rt, x1, y1, t1, hit_first = kernels2d.place_footstep(
+                False, left[0], left[1], left[2], first[0], first[1], first[2], g)
+            right = perturb(_new(Pose2D, (rx, ry, rt)))
+            lx, ly, lt, x2, y2, t2, hit_second = kernels2d.place_footstep(
+                True, right[0], right[1], right[2], second[0], second[1], second[2], g)
+            left = perturb(_new(Pose2D, (lx, ly, lt)))
         return (_new(FeetState, (feet[0], right)), _new(FeetState, (left, right)),
-                _new(DoubleStep, (done_first, _new(Footstep, (x, y, theta)))), int(hit_first) + int(hit_second))
+                _new(DoubleStep, (_new(Footstep, (x1, y1, t1)), _new(Footstep, (x2, y2, t2)))),
+                int(hit_first) + int(hit_second))
 
 
 _new = tuple.__new__  # NamedTuple construction without the Python-level __new__
-_PI = math.pi
-_TWO_PI = 2.0 * math.pi
-_fmod, _cos, _sin = math.fmod, math.cos, math.sin
-
-
-def _place(support: Pose2D, x: float, y: float, theta: float) -> Pose2D:
-    """``support.compose(Pose2D(x, y, theta))`` without the intermediate tuple (same arithmetic)."""
-    sx, sy, st = support
-    c, s = _cos(st), _sin(st)
-    wrapped = _fmod(st + theta + _PI, _TWO_PI)  # wrap_angle(st + theta), inlined
-    if wrapped <= 0.0:
-        wrapped += _TWO_PI
-    return _new(Pose2D, (sx + c * x - s * y, sy + s * x + c * y, wrapped - _PI))
