@@ -72,17 +72,20 @@ class ServoFeedForward:
             raise ValueError(f"backend.servo_kv must be >= 0, got {servo_kv!r}")
         if not (math.isfinite(control_dt) and control_dt > 0):
             raise ValueError(f"control_dt must be > 0, got {control_dt!r}")
-        self.gain = float(servo_kv) / np.asarray(kp, dtype=float) / float(control_dt)
-        self.previous = np.zeros(len(self.gain))
+        gain = float(servo_kv) / np.asarray(kp, dtype=float) / float(control_dt)
+        # One (2, n) array [gain, previous targets]: the driver's compiled control tick
+        # (footsim.kernels3d.control_tick) reads and updates it in place, like ctrl() below.
+        self.state = np.zeros((2, len(gain)))
+        self.state[0] = gain
+        self.gain, self.previous = self.state  # views
 
     def reset(self, targets: np.ndarray) -> None:
         """Start from rest at ``targets`` (no feed-forward until they change)."""
-        self.previous = np.array(targets, dtype=float)
+        self.previous[:] = targets
 
     def ctrl(self, targets: np.ndarray) -> np.ndarray:
-        """``targets``: a float array the caller does not mutate afterwards (kept as the previous)."""
         out = targets + self.gain * (targets - self.previous)
-        self.previous = targets
+        self.previous[:] = targets
         return out
 
 

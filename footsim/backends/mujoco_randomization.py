@@ -230,7 +230,7 @@ class MujocoRandomization:
         if nominal_ff is not None:  # keep the D term kv (qdot_t - qdot) with the new kp
             gain = nominal_ff / _positive(values, "actuator_kp_scale")
             if getattr(self, "_feed_forward", None) is not None:
-                self._feed_forward.gain = gain
+                self._feed_forward.gain[:] = gain  # in place: the driver's compiled tick holds the array
             else:
                 self._ff_gain = gain
 

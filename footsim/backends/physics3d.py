@@ -72,8 +72,10 @@ class TrunkStabilizer:
         self.hip_roll, self.hip_pitch = float(hip_roll), float(hip_pitch)
         self.ankle_roll, self.ankle_pitch = float(ankle_roll), float(ankle_pitch)
         self.active = any(v != 0.0 for v in gains.values())
-        # Per-joint gains (LEG_JOINT_NAMES order) so a correction is two vector operations per tick.
-        self._roll_gains, self._pitch_gains = np.zeros(12), np.zeros(12)
+        # Per-joint gains (LEG_JOINT_NAMES order) so a correction is two vector operations per tick;
+        # rows of one (2, 12) array, as the compiled tick (footsim.kernels3d.control_tick) takes them.
+        self.gains = np.zeros((2, 12))
+        self._roll_gains, self._pitch_gains = self.gains  # views
         self._roll_gains[self._HIP_ROLL], self._roll_gains[self._ANKLE_ROLL] = self.hip_roll, self.ankle_roll
         self._pitch_gains[self._HIP_PITCH], self._pitch_gains[self._ANKLE_PITCH] = self.hip_pitch, self.ankle_pitch
 
