@@ -219,10 +219,11 @@ def _recorded_targets(b, values):
     sent = []
     original = b.sim.set_leg_targets
     b.sim.set_leg_targets = lambda t: (sent.append(np.array(t)), original(t))
+    b.compiled_ticks = False  # the compiled control tick writes ctrl without set_leg_targets
     try:
         b.execute(DoubleStep.from_action(np.array([0.3, 0, 0, 0.3, 0, 0]), b.robot.step_limits))
     finally:
-        del b.sim.set_leg_targets
+        del b.sim.set_leg_targets, b.compiled_ticks
     return np.array(sent)
 
 

@@ -221,6 +221,10 @@ class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # rand
         ff = self._feed_forward  # = self._legs.ctrl = targets, below without the Binding overhead
         self._ctrl[self._leg_ids] = targets if ff is None else ff.ctrl(targets)
 
+    def control_arrays(self):
+        ff = self._feed_forward
+        return self._root_q[3:7], self._ctrl, self._leg_ids, None if ff is None else ff.state
+
     def advance(self, n_steps: int) -> None:
         if self._error is not None:
             return  # the state is no longer valid; the driver ends the episode at its next check

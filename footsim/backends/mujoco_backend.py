@@ -359,6 +359,10 @@ class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomi
         ff = self._feed_forward
         self.data.ctrl[self._leg_ctrl] = targets if ff is None else ff.ctrl(targets)
 
+    def control_arrays(self):
+        q, ff = self._free_q, self._feed_forward
+        return self.data.qpos[q + 3:q + 7], self.data.ctrl, self._leg_ctrl, None if ff is None else ff.state
+
     def advance(self, n_steps: int) -> None:
         self._step(self.model, self.data, n_steps)
 
