@@ -51,3 +51,11 @@ def control_tick(targets, trunk, quat, gains, feed_forward, ctrl, leg_ids, k):
         else:
             ctrl[leg_ids[j]] = t
 
+
+@_compiled
+def all_finite(a):
+    """``np.isfinite(a).all()`` without numpy's per-call overhead (~4 µs on a small array)."""
+    for v in a.flat:
+        if not math.isfinite(v):
+            return False
+    return True

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from footsim.backends.physics3d import TrunkStabilizer
-from footsim.kernels3d import control_tick
+from footsim.kernels3d import all_finite, control_tick
 
 GAINS = {"hip_roll": 0.5228, "hip_pitch": -0.1629, "ankle_roll": 0.0798, "ankle_pitch": -0.0843}
 
@@ -101,6 +101,17 @@ def test_control_tick_python_function_matches_the_compiled_one():
         control_tick(targets, trunk, quat, gains, ff, a, leg_ids, k)
         control_tick.py_func(targets, trunk, quat, gains, ff_b, b, leg_ids, k)
         np.testing.assert_array_equal(_bits(a), _bits(b))
+
+
+def test_all_finite_matches_numpy():
+    rng = np.random.default_rng(2)
+    for shape in [(0,), (3,), (3, 3), (7, 5)]:
+        for bad in [None, np.nan, np.inf, -np.inf]:
+            a = rng.normal(size=shape)
+            if bad is not None and a.size:
+                a.flat[rng.integers(a.size)] = bad
+            for view in (a, a.T, a[..., ::2]):
+                assert all_finite(view) == bool(np.isfinite(view).all())
 
 
 # -- end to end: the same physics with the compiled tick on and off ------------------------------

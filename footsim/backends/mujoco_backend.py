@@ -24,6 +24,7 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
 from footsim.backends.base import RenderOverlay
 from footsim.backends.mujoco_randomization import MujocoRandomization
 from footsim.backends.physics3d import Physics3DBackend, PhysicsSim
+from footsim.kernels3d import all_finite
 from footsim.robots.mjcf import CONTACT_FRICTION, FREE_JOINT, build_mjcf, import_mujoco
 from footsim.robots.spec import RobotSpec
 from footsim.tasks.scenes import Scene
@@ -298,6 +299,7 @@ class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomi
         self.torso = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, robot.base_link)
         self._sole_sites = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, n) for n in ("l_sole", "r_sole")]
         self._warning_ids = fatal_warning_ids()
+        self._warnings = d.warning.number  # a view: d.warning builds a new wrapper per access
         self._rot = np.zeros(9)
         self._step = mujoco.mj_step
         self._park_all()
@@ -382,10 +384,10 @@ class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomi
 
     def sim_error(self) -> str | None:
         d = self.data
-        message = fatal_warning_message(d.warning.number[self._warning_ids])
+        message = fatal_warning_message(self._warnings[self._warning_ids])
         if message is not None:
             return message
-        if not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all()):
+        if not (all_finite(d.qpos) and all_finite(d.qvel)):
             return "non-finite MuJoCo state (qpos/qvel)"
         return None
 
@@ -412,7 +414,7 @@ class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomi
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
-        self.model = self.data = None
+        self.model = self.data = self._warnings = None
 
 
 class MujocoBackend(Physics3DBackend):

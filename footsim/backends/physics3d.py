@@ -18,7 +18,7 @@ from functools import partial
 import numpy as np
 
 from footsim.backends.base import Backend, RenderOverlay, StepResult
-from footsim.kernels3d import control_tick
+from footsim.kernels3d import all_finite, control_tick
 from footsim.geometry import Pose2D
 from footsim.robots.spec import RobotSpec
 from footsim.tasks.scenes import Scene
@@ -459,9 +459,9 @@ class Physics3DBackend(Backend):
         if error is not None:
             return error, False
         position, rotation = self.sim.base_pose()
-        if not (np.isfinite(position).all() and np.isfinite(rotation).all()):
+        if not (all_finite(position) and all_finite(rotation)):
             return "non-finite base pose", False
-        if abs(position).max() > self.out_of_bounds:
+        if max(map(abs, position.tolist())) > self.out_of_bounds:  # 3 floats: cheaper than numpy's abs().max()
             return f"base left the ±{self.out_of_bounds} m bounds", False
         if rotation[2, 2] < 0.0:
             self._tilt, self._max_tilt = (math.pi / 2, math.pi / 2), math.pi / 2
