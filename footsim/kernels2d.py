@@ -228,6 +228,22 @@ def double_step_collides(circles, dims, sx, sy, st, rx, ry, rt, mx, my, mt, ex, 
 
 # -- footstep placement (footsim.walk.footsteps.FootstepGeometry) ------------------------------
 @_compiled
+def _axis_band(lo, hi, y_coeff, x_term, reach):
+    """Intersect the band [lo, hi] with the y satisfying |x_term + y_coeff * y| <= reach (one
+    separating axis of :func:`overlap_band`); ``(False, lo, hi)`` when nothing is left."""
+    if abs(y_coeff) < 1e-12:
+        return not abs(x_term) > reach, lo, hi  # written as the rejections so NaN behaves as before
+    a, b = (-reach - x_term) / y_coeff, (reach - x_term) / y_coeff
+    if a > b:
+        a, b = b, a
+    if a > lo:
+        lo = a
+    if b < hi:
+        hi = b
+    return not lo > hi, lo, hi
+
+
+@_compiled
 def overlap_band(x, c, s, half_l, half_w):
     """Lateral offsets y at which a foot at ``(x, y, theta)`` (``c, s = cos θ, sin θ``) overlaps an
     identical foot at the origin: ``(True, lo, hi)``, or ``(False, 0, 0)`` when some axis separates
@@ -246,34 +262,14 @@ def overlap_band(x, c, s, half_l, half_w):
     lo, hi = -reach, reach
     # axis (c, s)
     reach = half_l * ac + half_w * as_ + half_l * abs(c * c + s * s) + half_w * abs(-c * s + s * c)
-    if as_ < 1e-12:
-        if abs(c * x) > reach:
-            return False, 0.0, 0.0
-    else:
-        a, b = (-reach - c * x) / s, (reach - c * x) / s
-        if a > b:
-            a, b = b, a
-        if a > lo:
-            lo = a
-        if b < hi:
-            hi = b
-        if lo > hi:
-            return False, 0.0, 0.0
+    ok, lo, hi = _axis_band(lo, hi, s, c * x, reach)
+    if not ok:
+        return False, 0.0, 0.0
     # axis (−s, c)
     reach = half_l * as_ + half_w * ac + half_l * abs(-s * c + c * s) + half_w * abs(s * s + c * c)
-    if ac < 1e-12:
-        if abs(-s * x) > reach:
-            return False, 0.0, 0.0
-    else:
-        a, b = (-reach + s * x) / c, (reach + s * x) / c
-        if a > b:
-            a, b = b, a
-        if a > lo:
-            lo = a
-        if b < hi:
-            hi = b
-        if lo > hi:
-            return False, 0.0, 0.0
+    ok, lo, hi = _axis_band(lo, hi, c, -s * x, reach)
+    if not ok:
+        return False, 0.0, 0.0
     return True, lo, hi
 
 
