@@ -274,6 +274,19 @@ def overlap_band(x, c, s, half_l, half_w):
 
 
 @_compiled
+def overlap_bands(x, c, s, half_l, half_w, lo, hi):
+    """:func:`overlap_band` for every sample of the arrays ``x``, ``c``, ``s``, written into ``lo``
+    and ``hi`` (NaN where no y overlaps): the walk engine's check of a swing path
+    (``footsim.walk.engine._overlap_bands``)."""
+    for i in range(x.shape[0]):
+        overlaps, a, b = overlap_band(x[i], c[i], s[i], half_l, half_w)
+        if overlaps:
+            lo[i], hi[i] = a, b
+        else:
+            lo[i], hi[i] = np.nan, np.nan
+
+
+@_compiled
 def land(left, x, y, theta, g):
     """Clip a footstep ``(x, y, theta)`` (relative to the flying foot's resting pose) to the limits
     and back its lateral offset off to the edge of the overlap band if the feet would come closer

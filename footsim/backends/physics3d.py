@@ -364,7 +364,7 @@ class Physics3DBackend(Backend):
     def _control(self, trajectory):
         """This double step's per-tick control: ``control(k)`` commands tick ``k``'s joint
         targets (stabilizer correction, latency, feed-forward, push schedule)."""
-        targets, trunk = trajectory.joint_targets, trajectory.trunk
+        targets, trunk = trajectory.joint_targets, trajectory.trunk_in_support  # roll, pitch: as in .trunk
         gains = self.stabilizer.gains if self.stabilizer.active else None
         arrays = self.sim.control_arrays() if self.compiled_ticks and not self._latency else None
         if arrays is not None:

@@ -1,7 +1,8 @@
 """The quintic walk engine: footstep (or velocity) orders → leg joint trajectories.
 
 Behaviour follows the Bit-Bots / Rhoban *Quintic Walk* (thesis 3.3, ``shared/FACTS.md``);
-the implementation is our own, pure numpy.
+the implementation is our own, numpy (no simulator); the foot-overlap band of the swing-path
+check is the compiled kernel the footstep placement uses (:mod:`footsim.kernels2d`).
 
 * The walk phase runs over [0, 1) per double step; phase < 0.5 is left support, so the right
   foot flies first (``DoubleStep.first``), then the left foot.
@@ -37,11 +38,13 @@ interval, so the last tick of a double step is the put-down instant of the secon
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import IntEnum
+from functools import cached_property
 
 import numpy as np
 
+from footsim import kernels2d
 from footsim.geometry import Pose2D, mean_pose, wrap_angles
 from footsim.walk.footsteps import DoubleStep, FeetState, Footstep, FootstepGeometry, Side
 from footsim.walk.ik import LEG_JOINT_NAMES, LegGeometry, apply_joint_limits, solve_leg_ik
@@ -78,7 +81,9 @@ class WalkTrajectory:
 
     Poses are ``(x, y, z, roll, pitch, yaw)`` of the sole frames and the trunk (base) frame in
     the engine's odometry frame (the frame the feet were placed in at :meth:`QuinticWalk.reset`;
-    z = 0 is the ground), yaw wrapped to (−π, π].
+    z = 0 is the ground), yaw wrapped to (−π, π].  They are computed from the support-frame poses
+    on first access: the 3D driver needs only the joint targets and the trunk's roll and pitch
+    (:attr:`trunk_in_support`), which no frame change about z alters.
     """
 
     dt: float
@@ -87,13 +92,14 @@ class WalkTrajectory:
     support: np.ndarray  # (n,) bool: True = left support (phase < 0.5)
     state: np.ndarray  # (n,) WalkState of the half step each tick belongs to
     joint_targets: np.ndarray  # (n, 12) radians, LEG_JOINT_NAMES order
-    left_foot: np.ndarray  # (n, 6)
-    right_foot: np.ndarray  # (n, 6)
-    trunk: np.ndarray  # (n, 6)
     reachable: np.ndarray  # (n,) bool: IK reached both feet within the joint limits
     executed: DoubleStep | None  # the double step actually placed (clipped / interference); None for a stop
     feet: FeetState  # planar feet after the call
     interfered: int = 0  # footsteps shortened by foot–foot interference
+    # (3, 6, n): left sole, right sole, trunk in each tick's support-sole frame; (3, n) that frame
+    # (x, y, theta) in the odometry frame
+    local_poses: np.ndarray = field(default_factory=lambda: np.zeros((3, 6, 0)), repr=False)
+    support_poses: np.ndarray = field(default_factory=lambda: np.zeros((3, 0)), repr=False)
 
     def __len__(self) -> int:
         return int(self.t.shape[0])
@@ -101,6 +107,38 @@ class WalkTrajectory:
     @property
     def duration(self) -> float:
         return len(self) * self.dt
+
+    @property
+    def trunk_in_support(self) -> np.ndarray:
+        """(n, 6) trunk pose in each tick's support-sole frame (roll and pitch as in :attr:`trunk`)."""
+        return self.local_poses[2].T
+
+    @cached_property
+    def _odometry_poses(self) -> np.ndarray:
+        # Rotate about z by the support sole's heading and translate.
+        local = self.local_poses
+        sx, sy, stheta = self.support_poses
+        c, s = np.cos(stheta), np.sin(stheta)
+        world = local.copy()
+        world[:, X] = sx + c * local[:, X] - s * local[:, Y]
+        world[:, Y] = sy + s * local[:, X] + c * local[:, Y]
+        world[:, YAW] = wrap_angles(local[:, YAW] + stheta)
+        return world
+
+    @property
+    def left_foot(self) -> np.ndarray:
+        """(n, 6) left sole pose in the odometry frame."""
+        return self._odometry_poses[0].T
+
+    @property
+    def right_foot(self) -> np.ndarray:
+        """(n, 6) right sole pose in the odometry frame."""
+        return self._odometry_poses[1].T
+
+    @property
+    def trunk(self) -> np.ndarray:
+        """(n, 6) trunk (base) pose in the odometry frame."""
+        return self._odometry_poses[2].T
 
 
 @dataclass
@@ -149,23 +187,14 @@ def _rotation_cm(roll: np.ndarray, pitch: np.ndarray, yaw: np.ndarray) -> np.nda
 
 
 def _overlap_bands(x: np.ndarray, theta: np.ndarray, half_l: float, half_w: float) -> tuple[np.ndarray, np.ndarray]:
-    """Vectorised ``footsteps._overlap_band_y``: the y interval where a foot at (x, y, theta)
-    overlaps an identical foot at the origin, per sample; NaN where no y overlaps."""
-    c, s = np.cos(theta), np.sin(theta)
-    lo = np.full(x.shape, -np.inf)
-    hi = np.full(x.shape, np.inf)
-    separated = np.zeros(x.shape, dtype=bool)
-    for nx, ny in ((np.ones_like(c), np.zeros_like(c)), (np.zeros_like(c), np.ones_like(c)), (c, s), (-s, c)):
-        reach = (half_l * np.abs(nx) + half_w * np.abs(ny)
-                 + half_l * np.abs(nx * c + ny * s) + half_w * np.abs(-nx * s + ny * c))
-        flat = np.abs(ny) < 1e-12
-        separated |= flat & (np.abs(nx * x) > reach)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            a, b = (-reach - nx * x) / ny, (reach - nx * x) / ny
-        lo = np.where(flat, lo, np.maximum(lo, np.minimum(a, b)))
-        hi = np.where(flat, hi, np.minimum(hi, np.maximum(a, b)))
-    separated |= lo > hi
-    return np.where(separated, np.nan, lo), np.where(separated, np.nan, hi)
+    """``footsteps._overlap_band_y`` per sample: the y interval where a foot at (x, y, theta)
+    overlaps an identical foot at the origin; NaN where no y overlaps.  The band is the compiled
+    kernel ``FootstepGeometry.landing`` uses (:func:`footsim.kernels2d.overlap_band`), looped in
+    compiled code: the numpy version of the four axes cost more than the rest of a double step."""
+    lo, hi = np.empty(x.shape), np.empty(x.shape)
+    kernels2d.overlap_bands(np.ascontiguousarray(x, dtype=float), np.cos(theta), np.sin(theta), float(half_l),
+                            float(half_w), lo, hi)
+    return lo, hi
 
 
 def _constant_knots(value: float, duration: float) -> list:
@@ -662,13 +691,6 @@ class QuinticWalk:
             begin = end
         phase[phase >= 1.0] -= 1.0
         joints, reachable = self._leg_joints(local[2], local[0], local[1])
-        # To the odometry frame: rotate about z by the support foot's heading and translate.
-        sx, sy, stheta = support_pose
-        c, s = np.cos(stheta), np.sin(stheta)
-        world = local.copy()
-        world[:, X] = sx + c * local[:, X] - s * local[:, Y]
-        world[:, Y] = sy + s * local[:, X] + c * local[:, Y]
-        world[:, YAW] = wrap_angles(local[:, YAW] + stheta)
         t = (self._tick - n_total + np.arange(1, n_total + 1)) * dt
         return WalkTrajectory(
             dt=dt,
@@ -677,17 +699,15 @@ class QuinticWalk:
             support=phase < 0.5,
             state=state,
             joint_targets=joints,
-            left_foot=world[0].T,
-            right_foot=world[1].T,
-            trunk=world[2].T,
             reachable=reachable,
             executed=executed,
             feet=feet_after,
             interfered=interfered,
+            local_poses=local,
+            support_poses=support_pose,
         )
 
     def _empty_trajectory(self) -> WalkTrajectory:
-        empty6 = np.zeros((0, 6))
         return WalkTrajectory(
             dt=self.control_dt,
             t=np.zeros(0),
@@ -695,9 +715,6 @@ class QuinticWalk:
             support=np.zeros(0, dtype=bool),
             state=np.zeros(0, dtype=np.int8),
             joint_targets=np.zeros((0, 12)),
-            left_foot=empty6,
-            right_foot=empty6.copy(),
-            trunk=empty6.copy(),
             reachable=np.zeros(0, dtype=bool),
             executed=None,
             feet=self._feet,
