@@ -17,6 +17,8 @@ from typing import Sequence
 
 import numpy as np
 
+from footsim.kernels2d import _compiled
+
 _POWERS = np.arange(6.0)
 _ZEROS = {1: (0.0, 0.0, 0.0), 2: (0.0, 0.0), 3: (0.0,)}
 # Monomial coefficients of the quintic on s in [0, 1] from (p0, v0, a0, p1, v1, a1) in s units.
@@ -210,12 +212,18 @@ class PiecewiseQuintic:
         """Positions only, ``(channels, n)`` — the cheap path for sampling control ticks.
 
         ``t`` is ``(n,)`` for the same times on every channel or ``(channels, n)`` per channel.
+        One compiled call (:func:`_sample_positions`): the segment search and Horner's rule of
+        :meth:`_locate` and :meth:`evaluate`, the same float operations in the same order.
         """
         t = np.asarray(t, dtype=float)
         if t.ndim == 2 and t.shape[0] != self.n_channels:
             raise ValueError(f"per-channel times need {self.n_channels} rows, got {t.shape}")
-        c, tau = self._locate(np.atleast_1d(t))
-        return c[0] + tau * (c[1] + tau * (c[2] + tau * (c[3] + tau * (c[4] + tau * c[5]))))
+        times = np.ascontiguousarray(np.atleast_1d(t).reshape(-1, np.atleast_1d(t).shape[-1]))
+        band = 0.5 * (self._span - 1.0)
+        out = np.empty((self.n_channels, times.shape[1]))
+        _sample_positions(self._coefficients, self._segment_start, self._breaks, self._offsets[:, 0],
+                          self._last_column[:, 0], self._t_min - band, self._t_min + self._span - band, times, out)
+        return out
 
     def evaluate(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position, velocity, acceleration of every channel at times ``t``: each ``(channels, len(t))``."""
@@ -232,3 +240,19 @@ class PiecewiseQuintic:
         out[:, 1] = (c[:, 1:] * _VEL_FACTORS * powers[:, :5]).sum(axis=1)
         out[:, 2] = (c[:, 2:] * _ACC_FACTORS * powers[:, :4]).sum(axis=1)
         return out
+
+
+@_compiled
+def _sample_positions(coefficients, segment_start, breaks, offsets, last_column, low, high, times, out):
+    """:meth:`PiecewiseQuintic.positions` compiled: ``times`` is ``(1, n)`` (every channel) or
+    ``(channels, n)``; writes ``(channels, n)`` positions into ``out``."""
+    per_channel = times.shape[0] > 1
+    for ch in range(out.shape[0]):
+        row = ch if per_channel else 0
+        for i in range(times.shape[1]):
+            t = times[row, i]
+            query = min(max(t, low), high) + offsets[ch]  # clamped into the channel's band
+            column = min(np.searchsorted(breaks, query, side="right"), last_column[ch])
+            tau = t - segment_start[column]
+            out[ch, i] = coefficients[0, column] + tau * (coefficients[1, column] + tau * (coefficients[2, column] + tau * (
+                coefficients[3, column] + tau * (coefficients[4, column] + tau * coefficients[5, column]))))
