@@ -202,6 +202,26 @@ def test_trunk_yaw_is_the_mean_of_the_feet():
         np.testing.assert_allclose(np.angle(np.exp(1j * (traj.trunk[:, 5] - expected))), 0.0, atol=1e-9)
 
 
+def test_support_frame_trunk_is_the_odometry_trunk_seen_from_the_support_sole():
+    """The 3D driver reads roll and pitch from ``trunk_in_support``: they (and z) must equal the
+    odometry-frame trunk's, and x, y, yaw must be the trunk seen from the support sole."""
+    engine = make_engine()
+    for ds in random_double_steps(4, 0.8, seed=3):
+        traj = engine.double_step(ds)
+        local, world = traj.trunk_in_support, traj.trunk
+        np.testing.assert_array_equal(local[:, 2:5], world[:, 2:5])
+        # A half step's last tick (phase 0.5 or 1) is the put-down instant: both soles are down and
+        # ``support`` already names the next one, so those ticks are left out here.
+        inside = ~np.isclose(np.mod(traj.phase, 0.5), 0.0)
+        sole = np.where(traj.support[:, None], traj.left_foot, traj.right_foot)[inside]  # odometry frame
+        local, world = local[inside], world[inside]
+        c, s = np.cos(sole[:, 5]), np.sin(sole[:, 5])
+        np.testing.assert_allclose(sole[:, 0] + c * local[:, 0] - s * local[:, 1], world[:, 0], atol=1e-12)
+        np.testing.assert_allclose(sole[:, 1] + s * local[:, 0] + c * local[:, 1], world[:, 1], atol=1e-12)
+        np.testing.assert_allclose(np.angle(np.exp(1j * (sole[:, 5] + local[:, 5] - world[:, 5]))), 0.0, atol=1e-12)
+        assert inside.sum() >= len(traj) - 3
+
+
 def test_flying_foot_lifts_to_foot_rise_and_support_foot_stays_down():
     params = WalkParams()
     engine = make_engine(params)
