@@ -218,7 +218,8 @@ class PiecewiseQuintic:
         t = np.asarray(t, dtype=float)
         if t.ndim == 2 and t.shape[0] != self.n_channels:
             raise ValueError(f"per-channel times need {self.n_channels} rows, got {t.shape}")
-        times = np.ascontiguousarray(np.atleast_1d(t).reshape(-1, np.atleast_1d(t).shape[-1]))
+        t = np.atleast_1d(t)
+        times = np.ascontiguousarray(t.reshape(-1, t.shape[-1]))  # (1, n): the same times on every channel
         band = 0.5 * (self._span - 1.0)
         out = np.empty((self.n_channels, times.shape[1]))
         _sample_positions(self._coefficients, self._segment_start, self._breaks, self._offsets[:, 0],
