@@ -248,3 +248,22 @@ def test_create_reset_close_cycles_do_not_leak(backend):
     assert after_resets - before < 10.0, f"RSS grew {after_resets - before:.1f} MB over 200 resets"
     assert end - after_resets < 10.0, f"RSS grew {end - after_resets:.1f} MB over 200 create/reset/close cycles"
     assert not any(os.path.exists(p) for p in paths)  # temp URDF files removed
+
+
+def test_obstacle_contact_means_touching_not_merely_near(backend):
+    """An obstacle is moved towards the standing robot in 1 mm steps: ``obstacle_contact`` must agree
+    with Bullet's own closest-point distance (touching or penetrating), also in the few millimetres
+    where ``getContactPoints`` already lists points that are still apart."""
+    near_but_apart = 0
+    for x in np.arange(0.216, 0.199, -0.001):
+        backend.reset(Scene(goal=Pose2D(1.0, 0.0, 0.0), obstacles=(Obstacle(float(x), 0.0, 0.1),)),
+                      np.random.default_rng(0))
+        sim = backend.sim
+        ob = sim.obstacle_ids[0]
+        closest = pybullet.getClosestPoints(sim.robot_id, ob, 0.05, physicsClientId=sim.client)
+        gap = min(point[8] for point in closest)
+        listed = pybullet.getContactPoints(sim.robot_id, ob, physicsClientId=sim.client)
+        near_but_apart += bool(listed) and gap > 1e-4
+        if abs(gap) > 1e-4:  # skip exact touching, where the two queries may round differently
+            assert sim.obstacle_contact() == (gap < 0.0), (x, gap)
+    assert near_but_apart >= 1  # the case the check exists for was exercised

@@ -471,8 +471,10 @@ class PybulletSim(PhysicsSim):
 
     # -- events ---------------------------------------------------------------------------
     def obstacle_contact(self) -> bool:
+        # Bullet also lists points a few mm apart (positive contactDistance, index 8); count only
+        # touching or penetrating ones, as MuJoCo's contacts (geom margin 0) do.
         c, body = self.client, self.robot_id
-        return any(p.getContactPoints(body, ob, physicsClientId=c) for ob in self.obstacle_ids)
+        return any(point[8] <= 0.0 for ob in self.obstacle_ids for point in p.getContactPoints(body, ob, physicsClientId=c))
 
     def sim_error(self) -> str | None:
         pos, orn = p.getBasePositionAndOrientation(self.robot_id, physicsClientId=self.client)
