@@ -242,9 +242,14 @@ class FootstepEnv(gym.Env):
         return _NO_HINT if self._path_hint is None else self._path_hint.bearing(self._believed)
 
     def _info(self, terms: dict, result=None) -> dict[str, Any]:
+        executed = None if result is None else result.executed
+        # one array for the poses (and the executed action), handed out as views: numpy's
+        # per-array cost is a visible share of a 2D step
+        values = np.array((*self._pose, *self._believed) if executed is None
+                          else (*self._pose, *self._believed, *executed[0], *executed[1]), dtype=float)
         info = {
-            "pose": np.array(self._pose, dtype=float),
-            "pose_estimate": np.array(self._believed, dtype=float),
+            "pose": values[:3],
+            "pose_estimate": values[3:6],
             "outcome": self._outcome,
             "time_s": self._time,
             "steps": self._steps,
@@ -254,9 +259,7 @@ class FootstepEnv(gym.Env):
             info["randomization"] = dict(self._randomization)
         if result is not None:
             info["collided"] = bool(result.collided)
-            executed = result.executed
-            info["executed_action"] = None if executed is None else np.array(
-                (*executed[0], *executed[1]), dtype=float)
+            info["executed_action"] = None if executed is None else values[6:]
             if result.sim_error is not None:
                 info["sim_error"] = result.sim_error
             info.update(result.info)

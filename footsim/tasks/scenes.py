@@ -136,9 +136,13 @@ class SceneSampler:
             raise ValueError(f"task.ball_offset must be >= 0, got {self.ball_offset!r}")
 
     def sample(self, rng: np.random.Generator) -> Scene:
+        # sigma * standard_normal() is rng.normal(0, sigma)'s draw and value (numpy computes
+        # loc + scale * z) without the array machinery; a scene is ~15 such draws.
+        normal = rng.standard_normal
         while True:
-            gx, gy = rng.normal(0.0, self.goal_sigma_xy, size=2)
-            goal = Pose2D(float(gx), float(gy), wrap_angle(float(rng.normal(0.0, self.goal_sigma_theta))))
+            sigma = self.goal_sigma_xy
+            gx, gy = sigma * normal(), sigma * normal()
+            goal = Pose2D(gx, gy, wrap_angle(self.goal_sigma_theta * normal()))
             if not self.obstacles:
                 return Scene(goal)
             ball = Obstacle(*goal.transform_point(self.ball_offset, 0.0), self.ball_radius)
@@ -149,10 +153,11 @@ class SceneSampler:
             return Scene(goal, tuple(obstacles), ball)
 
     def _obstacle_near(self, cx: float, cy: float, goal: Pose2D, rng: np.random.Generator) -> Obstacle:
+        sigma, normal = self.obstacle_offset_sigma, rng.standard_normal
         while True:
-            dx, dy = rng.normal(0.0, self.obstacle_offset_sigma, size=2)
+            dx, dy = sigma * normal(), sigma * normal()  # rng.normal(0, sigma, size=2), see sample()
             r = uniform(rng, self.obstacle_radius_min, self.obstacle_radius_max)
-            x, y = cx + float(dx), cy + float(dy)
+            x, y = cx + dx, cy + dy
             clear_of_start = math.hypot(x, y) >= r + self.robot_radius
             clear_of_goal = math.hypot(x - goal.x, y - goal.y) >= r + self.robot_radius
             if clear_of_start and clear_of_goal:
