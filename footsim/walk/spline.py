@@ -169,9 +169,14 @@ class PiecewiseQuintic:
         # All channels' breakpoints in one sorted array: channel c's are shifted by c * span, so
         # one searchsorted locates the segment of every (channel, time) pair at once.
         t_min, t_max = float(times.min()), float(times.max())
-        self._span = 2.0 * (t_max - t_min) + 1.0
-        self._t_min = t_min
-        self._offsets = (np.arange(n_channels) * self._span)[:, None]
+        span = 2.0 * (t_max - t_min) + 1.0
+        # Queries are clamped into the band where the channel shift is unambiguous (times beyond a
+        # channel's knots just extrapolate its first / last segment).  Within the band a time
+        # before a channel's first breakpoint counts exactly the earlier channels' breakpoints,
+        # i.e. lands on the channel's first column, so only the upper cap is needed.
+        band = 0.5 * (span - 1.0)
+        self._query_low, self._query_high = t_min - band, t_min + span - band
+        self._offsets = (np.arange(n_channels) * span)[:, None]
         self._breaks = (times[:, 1:] + self._offsets).ravel()
         first_column = (np.arange(n_channels) * n_seg_max)[:, None]
         self._first_column = first_column
@@ -194,12 +199,7 @@ class PiecewiseQuintic:
 
     def _locate(self, t: np.ndarray):
         """``t`` is ``(n,)`` (same times for every channel) or ``(channels, n)`` (per channel)."""
-        # Clamp the query into the band where the channel shift is unambiguous (times beyond a
-        # channel's knots just extrapolate its first / last segment).  Within the band a time
-        # before a channel's first breakpoint counts exactly the earlier channels' breakpoints,
-        # i.e. lands on the channel's first column, so only the upper cap is needed.
-        band = 0.5 * (self._span - 1.0)
-        t_query = np.minimum(np.maximum(t, self._t_min - band), self._t_min + self._span - band)
+        t_query = np.minimum(np.maximum(t, self._query_low), self._query_high)  # see __init__
         if t.ndim == 1:
             t, t_query = t[None, :], t_query[None, :]
         q = t_query + self._offsets
@@ -220,10 +220,9 @@ class PiecewiseQuintic:
             raise ValueError(f"per-channel times need {self.n_channels} rows, got {t.shape}")
         t = np.atleast_1d(t)
         times = np.ascontiguousarray(t.reshape(-1, t.shape[-1]))  # (1, n): the same times on every channel
-        band = 0.5 * (self._span - 1.0)
         out = np.empty((self.n_channels, times.shape[1]))
         _sample_positions(self._coefficients, self._segment_start, self._breaks, self._offsets[:, 0],
-                          self._last_column[:, 0], self._t_min - band, self._t_min + self._span - band, times, out)
+                          self._last_column[:, 0], self._query_low, self._query_high, times, out)
         return out
 
     def evaluate(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
