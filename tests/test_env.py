@@ -51,6 +51,17 @@ def test_same_seed_same_episode():
     assert not np.array_equal(a, c)
 
 
+def test_episode_streams_are_integers_draws_of_the_env_rng():
+    # The per-episode seeds come from the raw stream; they must stay what integers(2**63) draws
+    # (the streams of earlier footsim versions, so recorded results reproduce).
+    env = FootstepEnv()
+    env.reset(seed=11)
+    reference = np.random.default_rng(11)  # gymnasium's np_random for seed 11
+    reference.standard_normal(3)  # the scene: goal x, y, theta
+    seeds = [int(reference.integers(2**63)) for _ in range(3)]
+    assert [env._noise_rng.seed, env.backend._rng.seed, env._random_rng.seed] == seeds
+
+
 def test_success_adds_the_remaining_steps():
     # goal exactly where one forward double step puts the robot
     env = FootstepEnv()

@@ -133,7 +133,7 @@ class Pymunk2DBackend(Backend):
         self.scene = scene
         self._rng = rng
         self._space = None
-        self._circles = kernels2d.circle_array(scene.circles)
+        self._circles = scene.circle_array
         self.feet = self.geometry.initial_feet()
         nav = self.feet.nav_pose
         self.history = [(Side.LEFT, self.feet.left), (Side.RIGHT, self.feet.right)]

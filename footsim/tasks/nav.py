@@ -7,6 +7,7 @@ a ``NavTaskConfig``; nothing here knows which backend runs.
 from __future__ import annotations
 
 import math
+import struct
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -99,6 +100,7 @@ def goal_features(pose: Pose2D, goal: Pose2D) -> tuple[float, float, float]:
 
 
 _PI, _TWO_PI, _fmod = math.pi, 2.0 * math.pi, math.fmod
+_pack_floats = struct.Struct("=17f").pack_into  # 17 floats into a float32 buffer
 
 
 _RAY_DIRECTIONS: dict[int, np.ndarray] = {}
@@ -129,10 +131,10 @@ def scene_arrays(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
     """``scene.circles`` (obstacles and ball) and ``scene.obstacle_circles`` (no ball) as float64
     ``(n, 3)`` arrays for the compiled kernels (:mod:`footsim.kernels2d`).
 
-    The env builds them once per episode and passes them to :func:`observation` and
-    :func:`reward_terms`; without them those functions build them from the scene on every call.
+    Views of the scene's cached :attr:`Scene.circle_array`; the env takes them once per episode
+    and passes them to :func:`observation` and :func:`reward_terms`.
     """
-    circles = kernels2d.circle_array(scene.circles)
+    circles = scene.circle_array
     return circles, circles[:len(scene.obstacles)]  # the ball, if any, is the last row
 
 
@@ -204,6 +206,11 @@ def _continuity(action, previous_action) -> float:
     a = action.tolist() if isinstance(action, np.ndarray) else action
     b = previous_action.tolist() if isinstance(previous_action, np.ndarray) else previous_action
     exp = math.exp
+    if len(a) == 6 and len(b) == 6:  # the env's case, unrolled: the same sum, left to right
+        a0, a1, a2, a3, a4, a5 = a
+        b0, b1, b2, b3, b4, b5 = b
+        return (exp(-3.0 * abs(a0 - b0)) + exp(-3.0 * abs(a1 - b1)) + exp(-3.0 * abs(a2 - b2))
+                + exp(-3.0 * abs(a3 - b3)) + exp(-3.0 * abs(a4 - b4)) + exp(-3.0 * abs(a5 - b5))) / 6
     total = 0
     for x, y in zip(a, b):
         total += exp(-3.0 * abs(x - y))
@@ -255,7 +262,7 @@ def observation(
     # writes it into the observation.
     n, max_range, scale = int(config.n_rays), config.ray_range, config.ray_scale
     obs = np.empty(17 + n + len(options), dtype=np.float32)
-    obs[:17] = values
+    _pack_floats(obs, 0, *values)  # = obs[:17] = values (the same float32 rounding), a third of the cost
     circles = (arrays if arrays is not None else scene_arrays(scene))[0]
     kernels2d.ray_observation(believed[0], believed[1], believed[2], circles, _ray_directions(n), max_range, scale,
                               _miss(max_range / scale), obs, 17)

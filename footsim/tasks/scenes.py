@@ -20,14 +20,17 @@ import tempfile
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
 from footsim.geometry import Pose2D, wrap_angle
+from footsim.kernels2d import circle_array
 
 
-@dataclass(frozen=True)
-class Obstacle:
+class Obstacle(NamedTuple):
+    """A circle: an obstacle or the ball (a named tuple: a scene draws seven of them per reset)."""
+
     x: float
     y: float
     r: float
@@ -54,6 +57,13 @@ class Scene:
     def obstacle_circles(self) -> tuple[tuple[float, float, float], ...]:
         """``obstacles`` (without the ball) as ``(x, y, r)`` tuples."""
         return tuple((o.x, o.y, o.r) for o in self.obstacles)
+
+    @cached_property
+    def circle_array(self) -> np.ndarray:
+        """``circles`` as the float64 ``(n, 3)`` array the compiled kernels take
+        (:func:`footsim.kernels2d.circle_array`), built once per scene and shared by the backend and
+        the task; the obstacles are the first ``len(obstacles)`` rows, the ball the last."""
+        return circle_array(self.circles)
 
     def to_dict(self) -> dict:
         return {
