@@ -15,10 +15,17 @@ def test_action_scaling_and_clipping():
     np.testing.assert_allclose(ds.as_array(), [0.156, -0.0515, 0.191, 0.156, -0.103, 0.0])
 
 
-@pytest.mark.parametrize("bad", [[np.nan, 0, 0, 0, 0, 0], [0, 0, 0, np.inf, 0, 0]])
+@pytest.mark.parametrize("bad", [[np.nan, 0, 0, 0, 0, 0], [0, 0, 0, np.inf, 0, 0], [np.inf, -np.inf, 0, 0, 0, 0],
+                                 [0, 0, 0, 0, 0, -np.inf]])
 def test_non_finite_action_raises(bad):
     with pytest.raises(ValueError, match="NaN or inf"):
         DoubleStep.from_action(bad, LIMITS)
+
+
+def test_huge_finite_action_is_clipped_not_rejected():
+    # the values overflow their sum (the fast finiteness check) but are finite: clipped
+    ds = DoubleStep.from_action([1e308, 1e308, -1e308, 1e308, 1e308, 0.5], LIMITS)
+    np.testing.assert_allclose(ds.as_array(), [0.156, 0.103, -0.764, 0.156, 0.103, 0.382])
 
 
 def test_landing_is_resting_pose_plus_step():

@@ -87,9 +87,13 @@ def action_values(action) -> list[float]:
         if a.shape != (6,):
             raise ValueError(f"a double-step action has 6 values, got shape {np.shape(action)}")
         values = a.tolist()
-    for x in values:
-        if not -_INF < x < _INF:  # NaN compares false
-            raise ValueError(f"action contains NaN or inf: {values}")
+    total = sum(values)
+    if not -_INF < total < _INF:  # NaN or inf somewhere, or (rarely) finite values overflowing the sum
+        for x in values:
+            if not -_INF < x < _INF:  # NaN compares false
+                raise ValueError(f"action contains NaN or inf: {values}")
+    if -1.0 <= min(values) and max(values) <= 1.0:  # all finite here, so min and max are exact
+        return values
     return [-1.0 if x < -1.0 else 1.0 if x > 1.0 else x for x in values]
 
 
@@ -169,6 +173,9 @@ def _overlap_band_y_reference(x: float, theta: float, half_l: float, half_w: flo
     return lo, hi
 
 
+_ORIGIN = Pose2D()
+
+
 @dataclass(frozen=True)
 class FootstepGeometry:
     """Foot plate, spacing and limits: everything needed to place footsteps in the plane."""
@@ -203,8 +210,17 @@ class FootstepGeometry:
                     f"{theta:.3f} rad (foot {self.foot_length} x {self.foot_width} m, gap {self.min_foot_gap} m)"
                 )
 
-    def initial_feet(self, pose: Pose2D = Pose2D()) -> FeetState:
+    def initial_feet(self, pose: Pose2D = _ORIGIN) -> FeetState:
         """Feet standing side by side around ``pose`` (the navigation frame)."""
+        if pose is _ORIGIN:  # every 2D episode starts here: computed once (all immutable)
+            feet = self.__dict__.get("_feet_at_origin")
+            if feet is None:
+                feet = self._stance(pose)
+                object.__setattr__(self, "_feet_at_origin", feet)
+            return feet
+        return self._stance(pose)
+
+    def _stance(self, pose: Pose2D) -> FeetState:
         half = 0.5 * self.foot_distance
         return FeetState(pose.compose(Pose2D(0.0, half, 0.0)), pose.compose(Pose2D(0.0, -half, 0.0)))
 
