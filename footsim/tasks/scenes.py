@@ -47,16 +47,16 @@ class Scene:
         """Obstacles and the ball: everything a ray or a foot can hit."""
         return self.obstacles + ((self.ball,) if self.ball is not None else ())
 
-    # Plain ``(x, y, r)`` tuples for the per-step hot paths (computed once per scene).
-    @cached_property
+    # ``(x, y, r)`` tuples for the per-step hot paths: an ``Obstacle`` is one already.
+    @property
     def circles(self) -> tuple[tuple[float, float, float], ...]:
         """``all_obstacles`` as ``(x, y, r)`` tuples."""
-        return tuple((o.x, o.y, o.r) for o in self.all_obstacles)
+        return self.all_obstacles
 
-    @cached_property
+    @property
     def obstacle_circles(self) -> tuple[tuple[float, float, float], ...]:
         """``obstacles`` (without the ball) as ``(x, y, r)`` tuples."""
-        return tuple((o.x, o.y, o.r) for o in self.obstacles)
+        return self.obstacles
 
     @cached_property
     def circle_array(self) -> np.ndarray:

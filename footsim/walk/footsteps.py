@@ -201,6 +201,8 @@ class FootstepGeometry:
         object.__setattr__(self, "_kernel_params", np.array(
             [self.limits.x, self.limits.y, self.limits.theta, self.foot_distance, clear, *self._half_gapped],
             dtype=np.float64))
+        # Every 2D episode starts standing at the origin (immutable, so shared).
+        object.__setattr__(self, "_feet_at_origin", self._stance(_ORIGIN))
         # The resting pose must be interference-free at any allowed turn, or the lateral
         # back-off in ``landing`` could not find a valid pose.
         for theta in (-self.limits.theta, self.limits.theta):
@@ -212,13 +214,7 @@ class FootstepGeometry:
 
     def initial_feet(self, pose: Pose2D = _ORIGIN) -> FeetState:
         """Feet standing side by side around ``pose`` (the navigation frame)."""
-        if pose is _ORIGIN:  # every 2D episode starts here: computed once (all immutable)
-            feet = self.__dict__.get("_feet_at_origin")
-            if feet is None:
-                feet = self._stance(pose)
-                object.__setattr__(self, "_feet_at_origin", feet)
-            return feet
-        return self._stance(pose)
+        return self._feet_at_origin if pose is _ORIGIN else self._stance(pose)
 
     def _stance(self, pose: Pose2D) -> FeetState:
         half = 0.5 * self.foot_distance
