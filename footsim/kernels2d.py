@@ -334,3 +334,21 @@ def place_double_step(lx, ly, lt, x1, y1, t1, x2, y2, t2, g):
     Returns :func:`place_footstep`'s 7 values for the right foot, then for the left foot."""
     right = place_footstep(False, lx, ly, lt, x1, y1, t1, g)
     return right + place_footstep(True, right[0], right[1], right[2], x2, y2, t2, g)
+
+
+@_compiled
+def execute_double_step(sx, sy, st, lx, ly, lt, x1, y1, t1, x2, y2, t2, g, circles, dims):
+    """A whole 2D double step in one call: :func:`place_double_step` from the left foot at ``(lx,
+    ly, lt)`` (the right foot standing at ``(sx, sy, st)``), :func:`double_step_collides` on the
+    result, and the navigation pose after it (:func:`footsim.geometry.mean_pose` of the feet).
+
+    Returns :func:`place_double_step`'s 14 values, then ``collided`` and the navigation pose's
+    ``x, y, theta``.
+    """
+    right = place_footstep(False, lx, ly, lt, x1, y1, t1, g)
+    left = place_footstep(True, right[0], right[1], right[2], x2, y2, t2, g)
+    rx, ry, rt, ex, ey, et = right[0], right[1], right[2], left[0], left[1], left[2]
+    collided = circles.shape[0] > 0 and double_step_collides(circles, dims, sx, sy, st, rx, ry, rt, lx, ly, lt,
+                                                             ex, ey, et)
+    return right + left + (collided, 0.5 * (ex + rx), 0.5 * (ey + ry), _mean_heading(et, rt))
+

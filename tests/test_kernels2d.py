@@ -359,15 +359,21 @@ def test_double_step_collisions_match_the_python_reference():
     outcomes = []
     for episode in range(200):
         backend.reset(sampler.sample(rng), np.random.default_rng(episode))
-        if episode % 2:
-            backend.apply_randomization({"footstep_noise_x": 0.02, "footstep_noise_y": 0.02, "footstep_noise_theta": 0.2})
+        sigma = 0.02 * (episode % 2)  # (noise settings persist across resets)
+        backend.apply_randomization({"footstep_noise_x": sigma, "footstep_noise_y": sigma,
+                                     "footstep_noise_theta": 10 * sigma})
         for _ in range(25):
             before = backend.feet
-            result = backend.execute(DoubleStep.from_action(rng.uniform(-1, 1, 6), backend.robot.step_limits))
+            double_step = DoubleStep.from_action(rng.uniform(-1, 1, 6), backend.robot.step_limits)
+            result = backend.execute(double_step)
             after_first = type(before)(before.left, backend.history[-2][1])
             expected = _reference_double_step_collides(backend, backend.scene.circles, before, after_first, result.feet)
             assert result.collided == expected
             outcomes.append(expected)
+            assert result.pose == mean_pose(*result.feet)  # (bit for bit)
+            if episode % 2 == 0:  # no execution noise: the compiled whole double step (execute_double_step)
+                placed = backend.geometry.execute(before, double_step)  # separate placement kernel
+                assert (after_first, result.feet, result.executed, result.info["foot_interference"]) == placed
     assert 200 < sum(outcomes) < len(outcomes) - 200  # both outcomes well represented
 
 

@@ -7,7 +7,8 @@ foot's mid-swing pose.  The overlap test is closed-form (:func:`box_hits_circles
 from the circle's centre to the rectangle is at most the radius), which is what a pymunk shape
 query of the same polygon against the same circles answers (``tests/test_backend_pymunk2d.py``
 checks the two against each other); the six tests of a double step run in one compiled call
-(:func:`footsim.kernels2d.double_step_collides`).  :meth:`Pymunk2DBackend.space` builds that
+(:func:`footsim.kernels2d.double_step_collides`; without execution noise the placement and the
+navigation pose join them in :func:`footsim.kernels2d.execute_double_step`).  :meth:`Pymunk2DBackend.space` builds that
 pymunk space on demand.  The navigation pose is the mean of the two feet.
 
 ``collision_model="nav_distance"`` is the thesis's own 2D check instead (5.1.1: "the distance to
@@ -30,7 +31,7 @@ from footsim.backends.base import Backend, RenderOverlay, StepResult
 from footsim.geometry import Pose2D, mean_pose
 from footsim.robots.spec import RobotSpec
 from footsim.tasks.scenes import Scene
-from footsim.walk.footsteps import DoubleStep, FeetState, FootstepGeometry, Side
+from footsim.walk.footsteps import DoubleStep, FeetState, FootstepGeometry, Side, placed_double_step
 from footsim.walk.params import WalkParams
 
 
@@ -165,8 +166,18 @@ class Pymunk2DBackend(Backend):
         if before is None:
             raise RuntimeError("backend pymunk: execute() before reset()")
         sigma = self._noise_sigma
+        perturbed = sigma[0] or sigma[1] or sigma[2]
+        if not perturbed and self.execution_model is None and self.collision_model == "footprint":
+            # the common case in one compiled call: placement, collision test and navigation pose
+            (first, second), (left, right) = double_step, before
+            values = kernels2d.execute_double_step(
+                right[0], right[1], right[2], left[0], left[1], left[2], first[0], first[1], first[2],
+                second[0], second[1], second[2], self.geometry.kernel_params, self._circles, self._dims)
+            after_first, after_second, executed, n_interfered = placed_double_step(left, values)
+            return self._result(after_first, after_second, executed, n_interfered, False, values[14],
+                                _new(Pose2D, values[15:]))
         after_first, after_second, executed, n_interfered = self.geometry.execute(
-            before, double_step, self._perturb if (sigma[0] or sigma[1] or sigma[2]) else None)
+            before, double_step, self._perturb if perturbed else None)
         if not self.scene.circles:
             collided = False
         elif self.collision_model == "footprint":
@@ -176,8 +187,12 @@ class Pymunk2DBackend(Backend):
         fell = False
         if self.execution_model is not None:
             after_first, after_second, fell = self._apply_execution_model(before, after_first, after_second, double_step)
+        return self._result(after_first, after_second, executed, n_interfered, fell, collided,
+                            mean_pose(after_second[0], after_second[1]))
+
+    def _result(self, after_first: FeetState, after_second: FeetState, executed: DoubleStep, n_interfered: int,
+                fell: bool, collided: bool, nav: Pose2D) -> StepResult:
         self.feet = after_second
-        nav = mean_pose(after_second[0], after_second[1])
         self.history += [(Side.RIGHT, after_first[1]), (Side.LEFT, after_second[0])]
         self.nav_history.append(nav)
         # positional (checked against StepResult's fields at import): keywords cost a µs here
@@ -225,3 +240,6 @@ class Pymunk2DBackend(Backend):
 
     def close(self) -> None:
         self._space = None
+
+
+_new = tuple.__new__  # NamedTuple construction without the Python-level __new__

@@ -198,7 +198,7 @@ class FootstepGeometry:
         # For the compiled placement (footsim.kernels2d.land): the limits, the foot distance, the
         # distance beyond which the feet can't overlap (two circumradii) and the grown half plate.
         clear = math.hypot(self.foot_length + self.min_foot_gap, self.foot_width + self.min_foot_gap)
-        object.__setattr__(self, "_kernel_params", np.array(
+        object.__setattr__(self, "kernel_params", np.array(
             [self.limits.x, self.limits.y, self.limits.theta, self.foot_distance, clear, *self._half_gapped],
             dtype=np.float64))
         # Every 2D episode starts standing at the origin (immutable, so shared).
@@ -240,7 +240,7 @@ class FootstepGeometry:
         """
         left = flying is Side.LEFT
         x, y, theta, interfered = kernels2d.land(left, float(step[0]), float(step[1]), float(step[2]),
-                                                 self._kernel_params)
+                                                 self.kernel_params)
         return Pose2D(x, (self.foot_distance if left else -self.foot_distance) + y, theta), \
             Footstep(x, y, theta), interfered
 
@@ -254,21 +254,32 @@ class FootstepGeometry:
         # The right foot flies first (left support), then the left foot (right support).
         # Compiled placement (footsim.kernels2d), tuple.__new__ below: this runs on every 2D env step.
         first, second = double_step
-        left, g = feet[0], self._kernel_params
+        left, g = feet[0], self.kernel_params
         if perturb is None:  # both footsteps in one call
-            (rx, ry, rt, x1, y1, t1, hit_first, lx, ly, lt, x2, y2, t2, hit_second) = kernels2d.place_double_step(
-                left[0], left[1], left[2], first[0], first[1], first[2], second[0], second[1], second[2], g)
-            right, left = _new(Pose2D, (rx, ry, rt)), _new(Pose2D, (lx, ly, lt))
-        else:  # the next step starts from where the perturbed foot really is
-            rx, ry, rt, x1, y1, t1, hit_first = kernels2d.place_footstep(
-                False, left[0], left[1], left[2], first[0], first[1], first[2], g)
-            right = perturb(_new(Pose2D, (rx, ry, rt)))
-            lx, ly, lt, x2, y2, t2, hit_second = kernels2d.place_footstep(
-                True, right[0], right[1], right[2], second[0], second[1], second[2], g)
-            left = perturb(_new(Pose2D, (lx, ly, lt)))
+            return placed_double_step(feet[0], kernels2d.place_double_step(
+                left[0], left[1], left[2], first[0], first[1], first[2], second[0], second[1], second[2], g))
+        # the next step starts from where the perturbed foot really is
+        rx, ry, rt, x1, y1, t1, hit_first = kernels2d.place_footstep(
+            False, left[0], left[1], left[2], first[0], first[1], first[2], g)
+        right = perturb(_new(Pose2D, (rx, ry, rt)))
+        lx, ly, lt, x2, y2, t2, hit_second = kernels2d.place_footstep(
+            True, right[0], right[1], right[2], second[0], second[1], second[2], g)
+        left = perturb(_new(Pose2D, (lx, ly, lt)))
         return (_new(FeetState, (feet[0], right)), _new(FeetState, (left, right)),
                 _new(DoubleStep, (_new(Footstep, (x1, y1, t1)), _new(Footstep, (x2, y2, t2)))),
                 int(hit_first) + int(hit_second))
+
+
+def placed_double_step(left_before: Pose2D, placed) -> tuple[FeetState, FeetState, DoubleStep, int]:
+    """:meth:`FootstepGeometry.execute`'s result from the left foot's pose before the double step
+    and the first 14 values of :func:`footsim.kernels2d.place_double_step` (or of a kernel that
+    starts with them): ``(feet after the first half step, after the second, executed, interfering
+    steps)``."""
+    rx, ry, rt, x1, y1, t1, hit_first, lx, ly, lt, x2, y2, t2, hit_second = placed[:14]
+    right = _new(Pose2D, (rx, ry, rt))
+    return (_new(FeetState, (left_before, right)), _new(FeetState, (_new(Pose2D, (lx, ly, lt)), right)),
+            _new(DoubleStep, (_new(Footstep, (x1, y1, t1)), _new(Footstep, (x2, y2, t2)))),
+            int(hit_first) + int(hit_second))
 
 
 _new = tuple.__new__  # NamedTuple construction without the Python-level __new__
