@@ -109,12 +109,10 @@ class Randomizer:
                 f"backend {backend_name!r} cannot apply randomization term(s) {unsupported}; "
                 f"it supports: {', '.join(sorted(capabilities)) or 'none'}"
             )
-        self.terms = dict(terms)
+        self.terms = dict(terms)  # fixed from here on
         self.values: dict[str, float] = {}
-
-    @property
-    def active(self) -> bool:
-        return bool(self.terms)
+        #: whether there is anything to draw (a plain attribute: the env reads it twice per step)
+        self.active = bool(self.terms)
 
     def episode(self, rng: np.random.Generator) -> dict[str, float]:
         """Draw every term (per-episode ones are then kept for the episode)."""

@@ -58,6 +58,9 @@ class NavTaskConfig:
         for key, value in self.reward_weights.items():
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"task.reward_weights.{key} must be >= 0, got {value!r}")
+        # Whether the observation or the reward needs the backend's trunk tilt (derived once: the
+        # config is frozen, and the env asks every step).
+        object.__setattr__(self, "uses_tilt", bool(self.observe_imu or self.reward_weights.get("stability", 0.0) > 0.0))
 
     @property
     def observation_size(self) -> int:
@@ -69,10 +72,6 @@ class NavTaskConfig:
         seed it (``init_from`` gives the extra inputs zero weights)."""
         return observation_layout(self.obstacles, int(self.n_rays), self.observe_imu, self.path_hint)
 
-    @property
-    def uses_tilt(self) -> bool:
-        """Whether the observation or the reward needs the backend's trunk tilt."""
-        return self.observe_imu or self.reward_weights.get("stability", 0.0) > 0.0
 
 
 def goal_features(pose: Pose2D, goal: Pose2D) -> tuple[float, float, float]:
