@@ -58,9 +58,11 @@ class NavTaskConfig:
         for key, value in self.reward_weights.items():
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"task.reward_weights.{key} must be >= 0, got {value!r}")
-        # Whether the observation or the reward needs the backend's trunk tilt (derived once: the
-        # config is frozen, and the env asks every step).
+        # Derived once (the config is frozen; the env asks every step): whether the observation or
+        # the reward needs the backend's trunk tilt, and the ray block's directions and miss value.
         object.__setattr__(self, "uses_tilt", bool(self.observe_imu or self.reward_weights.get("stability", 0.0) > 0.0))
+        object.__setattr__(self, "ray_directions", _ray_directions(int(self.n_rays)))
+        object.__setattr__(self, "ray_miss", _miss(self.ray_range / self.ray_scale))
 
     @property
     def observation_size(self) -> int:
@@ -246,9 +248,7 @@ def observation(
     """
     d, alpha, beta = features if features is not None else goal_features(believed, scene.goal)
     a1, a2 = previous_actions
-    values = [math.tanh(d / config.distance_scale), math.sin(alpha), math.cos(alpha), math.sin(beta), math.cos(beta)]
-    values += a1.tolist() if isinstance(a1, np.ndarray) else a1
-    values += a2.tolist() if isinstance(a2, np.ndarray) else a2
+    head = (math.tanh(d / config.distance_scale), math.sin(alpha), math.cos(alpha), math.sin(beta), math.cos(beta))
     options = []
     if config.observe_imu:
         scale = config.imu_scale
@@ -256,15 +256,16 @@ def observation(
     if config.path_hint:
         options += [hint[0], hint[1]]
     if not config.obstacles:
-        return np.array(values + options if options else values, dtype=np.float32)
+        return np.array([*head, *a1, *a2, *options], dtype=np.float32)
     # The ray block goes between the actions and the options: one compiled call (footsim.kernels2d)
     # writes it into the observation.
-    n, max_range, scale = int(config.n_rays), config.ray_range, config.ray_scale
+    directions = config.ray_directions
+    n = directions.shape[1]
     obs = np.empty(17 + n + len(options), dtype=np.float32)
-    _pack_floats(obs, 0, *values)  # = obs[:17] = values (the same float32 rounding), a third of the cost
+    _pack_floats(obs, 0, *head, *a1, *a2)  # = obs[:17] = values (the same float32 rounding), a third of the cost
     circles = (arrays if arrays is not None else scene_arrays(scene))[0]
-    kernels2d.ray_observation(believed[0], believed[1], believed[2], circles, _ray_directions(n), max_range, scale,
-                              _miss(max_range / scale), obs, 17)
+    kernels2d.ray_observation(believed[0], believed[1], believed[2], circles, directions, config.ray_range,
+                              config.ray_scale, config.ray_miss, obs, 17)
     if options:
         obs[17 + n:] = options
     return obs
