@@ -8,6 +8,10 @@ actions (episodes reset as they end), in alternating order, and report CPU secon
 On this shared machine the speed of the same code drifts by up to 2x within minutes; switching
 every fraction of a second makes both sides see the same drift, so the median of the per-round
 time ratios is far steadier than comparing separate runs.
+
+Run it in both orders (A B, then B A) and combine the two ratios (geometric mean of r1 and 1/r2):
+an A/A run of one commit against itself gave 0.967, so a single order carries a side bias of a
+few per cent (which process is which: memory layout, hash seeds).
 """
 
 from __future__ import annotations
