@@ -100,7 +100,7 @@ def build_task(task_cfg: Mapping):
         cfg.pop("success_angle_deg")
     known = {"max_steps", "success_distance", "success_angle", "distance_scale", "n_rays", "ray_range",
              "ray_scale", "reward_weights", "observe_imu", "imu_scale", "stability_scale", "path_hint",
-             "path_hint_lookahead", "path_hint_clearance"}
+             "path_hint_lookahead", "path_hint_clearance", "success_bonus"}
     unknown = sorted(set(cfg) - known)
     if unknown:
         raise ValueError(f"task: unknown key(s) {unknown}; valid: {sorted(known | {'name', 'obstacles', 'scenes', 'success_angle_deg'})}")

@@ -209,7 +209,8 @@ class FootstepEnv(gym.Env):
             self._outcome, terminated = "collision", True
         elif nav.is_success(self._pose, scene.goal, task, features):
             self._outcome, terminated = "success", True
-            reward += float(task.max_steps - self._steps)  # the rest of the episode at max reward
+            # the rest of the episode at the maximum step reward (task.success_bonus per step; thesis: 1)
+            reward += task.success_bonus * float(task.max_steps - self._steps)
         truncated = not terminated and self._steps >= task.max_steps
         if truncated:
             self._outcome = "timeout"

@@ -71,6 +71,13 @@ def test_success_adds_the_remaining_steps():
     # all terms 1 except distance and continuity
     base = 0.3 * 1 + 0.3 * 1 + 0.2 * 1 + 0.2 * (2 * math.exp(-3) + 4) / 6
     assert r == pytest.approx(base + 99.0)
+    # task.success_bonus scales what each remaining step pays (thesis: 1)
+    env = FootstepEnv(task={"name": "nav", "success_bonus": 2.5})
+    env.reset(seed=0, options={"scene": Scene(Pose2D(0.234, 0.0, 0.0))})
+    obs, r, term, trunc, info = env.step(np.array([1, 0, 0, 1, 0, 0.0]))
+    assert info["outcome"] == "success" and r == pytest.approx(base + 2.5 * 99.0)
+    with pytest.raises(ValueError, match="success_bonus"):
+        FootstepEnv(task={"name": "nav", "success_bonus": -1.0})
 
 
 def test_timeout_after_100_double_steps():

@@ -41,6 +41,7 @@ class NavTaskConfig:
     path_hint: bool = False  # append sin, cos of the bearing to a point on a global grid path (thesis ch. 9)
     path_hint_lookahead: float = 0.5  # [m] along the path past its point closest to the believed pose
     path_hint_clearance: float = 0.2  # [m] inflation of the obstacles for the path (footprint + margin)
+    success_bonus: float = 1.0  # reward per remaining step on success (thesis: 1, the maximum step reward)
 
     def __post_init__(self) -> None:
         for key in ("success_distance", "success_angle", "distance_scale", "ray_range", "ray_scale", "imu_scale",
@@ -48,6 +49,8 @@ class NavTaskConfig:
             value = getattr(self, key)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"task.{key} must be a positive number, got {value!r}")
+        if not (math.isfinite(self.success_bonus) and self.success_bonus >= 0):
+            raise ValueError(f"task.success_bonus must be >= 0, got {self.success_bonus!r}")
         if int(self.max_steps) <= 0:
             raise ValueError(f"task.max_steps must be > 0, got {self.max_steps!r}")
         if int(self.n_rays) <= 0:
