@@ -21,6 +21,21 @@ def run(*args, cwd=None, check=True):
     return proc
 
 
+def _reject_non_json(constant):
+    raise AssertionError(f"summary.json holds {constant}, which strict JSON parsers reject")
+
+
+def test_summary_json_is_strict_json_without_successes(tmp_path):
+    from footsim.rl.evaluate import format_table, summarize, write_results
+
+    records = [{"outcome": "timeout", "time_s": 50.0, "steps": 100, "x": 0.0, "y": 0.0, "theta": 0.0}] * 3
+    summary = summarize(records)
+    write_results(tmp_path, records, summary, plot=False)
+    saved = json.loads((tmp_path / "summary.json").read_text(), parse_constant=_reject_non_json)
+    assert saved["timeout"] == 1.0 and saved["success_time_mean"] is None and saved["success_steps_std"] is None
+    assert "| — | — |" in format_table({"policy": saved}) == format_table({"policy": summary})
+
+
 def test_scenes_train_eval_resume(tmp_path):
     scenes = tmp_path / "scenes.json"
     run("footsim-scenes", f"out={scenes}", "n=4", "seed=3", "obstacles=true")
@@ -40,7 +55,7 @@ def test_scenes_train_eval_resume(tmp_path):
     rates = {tag: events.Scalars(tag)[-1].value for tag in events.Tags()["scalars"] if tag.startswith("rollout/") and tag.endswith("_rate")}
     assert set(rates) == {f"rollout/{o}_rate" for o in ("success", "timeout", "fall", "collision", "sim_error")}
     assert sum(rates.values()) == pytest.approx(1.0, abs=1e-6) and rates["rollout/collision_rate"] > 0  # random steps collide
-    summary = json.loads((run_dir / "eval/summary.json").read_text())
+    summary = json.loads((run_dir / "eval/summary.json").read_text(), parse_constant=_reject_non_json)
     assert summary["episodes"] == 5
     assert sum(summary[k] for k in ("success", "timeout", "fall", "collision", "sim_error")) == pytest.approx(1)
 
@@ -55,8 +70,10 @@ def test_scenes_train_eval_resume(tmp_path):
     # resume: extend the budget by editing nothing but the saved total, then continue
     cfg = (run_dir / "config.yaml").read_text().replace("total_timesteps: 256", "total_timesteps: 512")
     (run_dir / "config.yaml").write_text(cfg)
-    out = run("footsim-train", f"resume={run_dir}", f"hydra.run.dir={tmp_path / 'resume_log'}").stdout
+    out = run("footsim-train", f"resume={run_dir}", "agent.learning_rate=0.5",
+              f"hydra.run.dir={tmp_path / 'resume_log'}").stdout
     assert "resuming" in out
+    assert "ignoring agent.learning_rate=0.5" in out  # the saved config decides, and it says so
     info = json.loads((run_dir / "train_info.json").read_text())
     assert info["num_timesteps"] >= 512
 
@@ -65,6 +82,7 @@ def test_scenes_train_eval_resume(tmp_path):
     ("backend=bogus", "backend"),
     ("train.n_envs=0", "train.n_envs must be a positive integer"),
     ("noise.sigma_x=-0.1", "noise.sigma_x must be a number >= 0"),
+    ("task.scenes.ball_radius=-0.1", "task.scenes.ball_radius must be a positive number"),
 ])
 def test_bad_config_fails_at_start_naming_the_key(tmp_path, override, message):
     proc = run("footsim-train", *TINY, override, f"hydra.run.dir={tmp_path}", check=False)

@@ -151,7 +151,7 @@ def test_noise_statistics_in_robot_frame():
 
 
 def test_invalid_sampler_values_name_the_key():
-    with pytest.raises(ValueError, match="task.obstacle_radius_min"):
+    with pytest.raises(ValueError, match="task.scenes.obstacle_radius_min"):
         SceneSampler(obstacle_radius_min=-0.1)
-    with pytest.raises(ValueError, match="task.goal_sigma_xy"):
+    with pytest.raises(ValueError, match="task.scenes.goal_sigma_xy"):
         SceneSampler(goal_sigma_xy=0)

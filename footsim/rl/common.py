@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 import tempfile
 from pathlib import Path
@@ -33,7 +34,19 @@ def atomic_save(save: Callable[[str], None], path: str | os.PathLike, suffix: st
 
 
 def write_json(path: str | os.PathLike, data) -> None:
-    atomic_write_text(path, json.dumps(data, indent=2, default=float) + "\n")
+    """Strict JSON, atomically: NaN and inf (e.g. the success time of a run without a success)
+    become ``null``, which every JSON parser reads."""
+    atomic_write_text(path, json.dumps(_finite_or_null(data), indent=2, default=float, allow_nan=False) + "\n")
+
+
+def _finite_or_null(value):
+    if isinstance(value, dict):
+        return {k: _finite_or_null(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite_or_null(v) for v in value]
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(value) else None
+    return value
 
 
 def save_config(run_dir: Path, cfg: DictConfig) -> None:

@@ -129,10 +129,18 @@ def format_table(rows: dict[str, dict]) -> str:
     for name, s in rows.items():
         lines.append(
             f"| {name} | {s['success']:.3f} | {s['timeout']:.3f} | {s['fall']:.3f} | {s['collision']:.3f} | "
-            f"{s['success_time_mean']:.2f} ± {s['success_time_std']:.2f} | "
-            f"{s['success_steps_mean']:.2f} ± {s['success_steps_std']:.2f} |"
+            f"{_mean_std(s['success_time_mean'], s['success_time_std'])} | "
+            f"{_mean_std(s['success_steps_mean'], s['success_steps_std'])} |"
         )
     return "\n".join(lines)
+
+
+def _mean_std(mean, std) -> str:
+    """``mean ± std`` with 2 decimals; "—" when undefined (no successful episode: NaN in memory,
+    null in summary.json)."""
+    if mean is None or math.isnan(mean):
+        return "—"
+    return f"{mean:.2f} ± {std:.2f}"
 
 
 def write_results(out_dir: Path, records: list[dict], summary: dict, scenes: list[Scene] | None = None,

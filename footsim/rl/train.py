@@ -14,7 +14,7 @@ from pathlib import Path
 from omegaconf import DictConfig, OmegaConf
 
 from footsim.rl.common import (
-    CHECKPOINT_DIR, MODEL_FILE, VECNORM_FILE, atomic_save, load_run_config, policy_class, policy_kwargs,
+    CHECKPOINT_DIR, CONFIG_FILE, MODEL_FILE, VECNORM_FILE, atomic_save, load_run_config, policy_class, policy_kwargs,
     save_config, validate_train_config, write_json,
 )
 
@@ -42,6 +42,10 @@ def build_vec_env(cfg: DictConfig):
     kind = cfg.train.vec_env
     if kind == "auto":  # the 2D env is far cheaper than inter-process messaging
         kind = "dummy" if cfg.backend.name == "pymunk" or n_envs == 1 else "subproc"
+    if kind == "subproc":  # a missing simulator: its clear ImportError here, not a worker's broken pipe
+        from footsim.backends.base import backend_class
+
+        backend_class(cfg.backend.name)
     factories = [_env_factory(cfg, i) for i in range(n_envs)]
     venv = DummyVecEnv(factories) if kind == "dummy" else SubprocVecEnv(factories, start_method="forkserver")
     venv.seed(int(cfg.seed))
@@ -183,7 +187,12 @@ def train(cfg: DictConfig, run_dir: Path) -> dict:
 def _main(cfg: DictConfig):
     from hydra.core.hydra_config import HydraConfig
 
-    summary = train(cfg, Path(HydraConfig.get().runtime.output_dir))
+    hydra_cfg = HydraConfig.get()
+    if cfg.get("resume"):
+        ignored = [o for o in hydra_cfg.overrides.task if o.split("=", 1)[0].lstrip("+~") != "resume"]
+        if ignored:  # the run's saved config decides; say so rather than drop them silently
+            print(f"resume: continuing with the run's saved config ({CONFIG_FILE}); ignoring {' '.join(ignored)}")
+    summary = train(cfg, Path(hydra_cfg.runtime.output_dir))
     return summary.get("success") if summary else None
 
 

@@ -136,14 +136,14 @@ class SceneSampler:
         for key in positive:
             value = getattr(self, key)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ValueError(f"task.{key} must be a positive number, got {value!r}")
+                raise ValueError(f"task.scenes.{key} must be a positive number, got {value!r}")
         for key in ("n_obstacles_robot", "n_obstacles_goal"):
             if int(getattr(self, key)) < 0:
-                raise ValueError(f"task.{key} must be >= 0, got {getattr(self, key)!r}")
+                raise ValueError(f"task.scenes.{key} must be >= 0, got {getattr(self, key)!r}")
         if self.obstacle_radius_max < self.obstacle_radius_min:
-            raise ValueError("task.obstacle_radius_max must be >= task.obstacle_radius_min")
+            raise ValueError("task.scenes.obstacle_radius_max must be >= task.scenes.obstacle_radius_min")
         if self.ball_offset < 0:
-            raise ValueError(f"task.ball_offset must be >= 0, got {self.ball_offset!r}")
+            raise ValueError(f"task.scenes.ball_offset must be >= 0, got {self.ball_offset!r}")
 
     def sample(self, rng: np.random.Generator) -> Scene:
         # sigma * standard_normal() is rng.normal(0, sigma)'s draw and value (numpy computes
