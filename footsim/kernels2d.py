@@ -351,4 +351,3 @@ def execute_double_step(sx, sy, st, lx, ly, lt, x1, y1, t1, x2, y2, t2, g, circl
     collided = circles.shape[0] > 0 and double_step_collides(circles, dims, sx, sy, st, rx, ry, rt, lx, ly, lt,
                                                              ex, ey, et)
     return right + left + (collided, 0.5 * (ex + rx), 0.5 * (ey + ry), _mean_heading(et, rt))
-

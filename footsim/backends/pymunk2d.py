@@ -8,8 +8,9 @@ from the circle's centre to the rectangle is at most the radius), which is what 
 query of the same polygon against the same circles answers (``tests/test_backend_pymunk2d.py``
 checks the two against each other); the six tests of a double step run in one compiled call
 (:func:`footsim.kernels2d.double_step_collides`; without execution noise the placement and the
-navigation pose join them in :func:`footsim.kernels2d.execute_double_step`).  :meth:`Pymunk2DBackend.space` builds that
-pymunk space on demand.  The navigation pose is the mean of the two feet.
+navigation pose join them in :func:`footsim.kernels2d.execute_double_step`).
+:meth:`Pymunk2DBackend.space` builds that pymunk space on demand.  The navigation pose is the mean
+of the two feet.
 
 ``collision_model="nav_distance"`` is the thesis's own 2D check instead (5.1.1: "the distance to
 the closest obstacle ... below a defined threshold"): the navigation pose at each put-down closer

@@ -78,7 +78,6 @@ class NavTaskConfig:
         return observation_layout(self.obstacles, int(self.n_rays), self.observe_imu, self.path_hint)
 
 
-
 def goal_features(pose: Pose2D, goal: Pose2D) -> tuple[float, float, float]:
     """Distance d, goal-orientation error α and bearing β (thesis Fig. 5.3), all from ``pose``.
 
