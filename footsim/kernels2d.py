@@ -345,9 +345,8 @@ def execute_double_step(sx, sy, st, lx, ly, lt, x1, y1, t1, x2, y2, t2, g, circl
     Returns :func:`place_double_step`'s 14 values, then ``collided`` and the navigation pose's
     ``x, y, theta``.
     """
-    right = place_footstep(False, lx, ly, lt, x1, y1, t1, g)
-    left = place_footstep(True, right[0], right[1], right[2], x2, y2, t2, g)
-    rx, ry, rt, ex, ey, et = right[0], right[1], right[2], left[0], left[1], left[2]
+    placed = place_double_step(lx, ly, lt, x1, y1, t1, x2, y2, t2, g)
+    rx, ry, rt, ex, ey, et = placed[0], placed[1], placed[2], placed[7], placed[8], placed[9]
     collided = circles.shape[0] > 0 and double_step_collides(circles, dims, sx, sy, st, rx, ry, rt, lx, ly, lt,
                                                              ex, ey, et)
-    return right + left + (collided, 0.5 * (ex + rx), 0.5 * (ey + ry), _mean_heading(et, rt))
+    return placed + (collided, 0.5 * (ex + rx), 0.5 * (ey + ry), _mean_heading(et, rt))

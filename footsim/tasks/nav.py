@@ -65,7 +65,7 @@ class NavTaskConfig:
         # the reward needs the backend's trunk tilt, and the ray block's directions and miss value.
         object.__setattr__(self, "uses_tilt", bool(self.observe_imu or self.reward_weights.get("stability", 0.0) > 0.0))
         object.__setattr__(self, "ray_directions", _ray_directions(int(self.n_rays)))
-        object.__setattr__(self, "ray_miss", _miss(self.ray_range / self.ray_scale))
+        object.__setattr__(self, "ray_miss", float(np.tanh(self.ray_range / self.ray_scale)))  # a ray hitting nothing
 
     @property
     def observation_size(self) -> int:
@@ -306,14 +306,3 @@ class PathHint:
             return 0.0, 1.0
         angle = wrap_angle(math.atan2(dy, dx) - pose.theta)
         return math.sin(angle), math.cos(angle)
-
-
-_MISSES: dict[float, float] = {}
-
-
-def _miss(x: float) -> float:
-    """``tanh(x)``, the observation of a ray that hits nothing (``x = ray_range / ray_scale``), cached."""
-    value = _MISSES.get(x)
-    if value is None:
-        value = _MISSES[x] = float(np.tanh(x))
-    return value
