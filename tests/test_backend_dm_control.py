@@ -119,8 +119,13 @@ def test_same_seed_identical_trajectory():
 
 def test_joint_name_mapping(backend):
     sim, physics = backend.sim, backend.sim.physics
+    upper = set(backend.robot.upper_body_joint_names)
+    assert set(sim.joint_names) == set(backend.robot.joint_names) - (upper if sim.rigid_upper_body else set())
     for name in backend.robot.joint_names:
         joint, actuator = sim.mjcf_model.find("joint", name), sim.mjcf_model.find("actuator", name)
+        if name not in sim.joint_names:  # welded upper body: neither joint nor actuator
+            assert joint is None and actuator is None, name
+            continue
         assert sim.joints[name] is joint and sim.actuators[name] is actuator
         assert physics.bind(actuator).trnid[0] == physics.bind(joint).element_id
         assert physics.named.model.jnt_qposadr[name] == physics.bind(joint).qposadr

@@ -89,9 +89,18 @@ def test_same_seed_identical_trajectory():
 def test_joint_name_mapping(backend):
     sim = backend.sim
     m = sim.model
-    for name in backend.robot.joint_names:
+    robot = backend.robot
+    upper = set(robot.upper_body_joint_names)
+    assert upper and not upper & set(LEG_JOINT_NAMES)
+    expected = [n for n in robot.joint_names if not (sim.rigid_upper_body and n in upper)]
+    assert list(sim.joint_names) == expected and set(LEG_JOINT_NAMES) <= set(expected)
+    assert m.nu == len(expected) and m.nv == 6 + len(expected)
+    for name in robot.joint_names:
         jid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)
         aid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
+        if name not in expected:  # welded: neither joint nor actuator
+            assert jid < 0 and aid < 0, name
+            continue
         assert jid >= 0 and aid >= 0, name
         assert m.actuator_trnid[aid, 0] == jid
         assert sim.joint_qpos[name] == m.jnt_qposadr[jid]
@@ -113,6 +122,34 @@ def test_joint_name_mapping(backend):
         sim.model.opt.gravity[:] = (0.0, 0.0, -9.81)
     np.testing.assert_allclose(reached, targets, atol=0.03)
     assert np.argsort(reached).tolist() == np.argsort(targets).tolist()
+
+
+@pytest.mark.parametrize("rigid", [True, False])
+def test_upper_body_at_walk_ready_pose_matches_spec_kinematics(rigid):
+    """Welded or held by its servos, every link sits where the spec's own forward kinematics
+    (numpy, independent of MuJoCo) puts it at the walk-ready angles, relative to the torso."""
+    from footsim import config as fconf
+
+    backend = MujocoBackend(fconf.build_robot("wolfgang"), make_backend("mujoco").walk, rigid_upper_body=rigid)
+    try:
+        robot, sim = backend.robot, backend.sim
+        assert sim.model.nv == (18 if rigid else 26)
+        pose = dict(robot.walk_ready)
+        backend.reset(EMPTY, np.random.default_rng(0))
+        pose.update(zip(LEG_JOINT_NAMES, backend.engine.standing_joint_targets()))
+        sim.reset_robot(np.array([0.0, 0.0, 1.0]), pose)  # kinematics only: no physics step
+        expected = robot.link_transforms(pose)
+        d, m = sim.data, sim.model
+        torso = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, robot.base_link)
+        base_rot, base_pos = d.xmat[torso].reshape(3, 3), d.xpos[torso]
+        for link in robot.link_names:
+            body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, link)
+            position = base_rot.T @ (d.xpos[body] - base_pos)
+            rotation = base_rot.T @ d.xmat[body].reshape(3, 3)
+            np.testing.assert_allclose(position, expected[link][:3, 3], atol=1e-9, err_msg=link)
+            np.testing.assert_allclose(rotation, expected[link][:3, :3], atol=1e-9, err_msg=link)
+    finally:
+        backend.close()
 
 
 def test_servo_kv_feeds_the_target_velocity_forward(backend):

@@ -88,7 +88,9 @@ class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # rand
     # -- world ------------------------------------------------------------------------------
     def build(self, robot: RobotSpec, physics_dt: float) -> None:
         self.robot = robot
-        model = mjcf.from_xml_string(build_mjcf(robot, floor=True, timestep=physics_dt).xml)
+        self._model_joints(robot)
+        model = mjcf.from_xml_string(build_mjcf(robot, floor=True, timestep=physics_dt,
+                                                rigid_upper_body=self.rigid_upper_body).xml)
         model.option.integrator = self.integrator
         offscreen = model.visual.get_children("global")
         offscreen.offwidth = offscreen.offheight = self.max_render_size
@@ -122,8 +124,8 @@ class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # rand
                 raise ValueError(f"dm_control model has no {kind} {name!r}")
             return element
 
-        self.joints = {n: find("joint", n) for n in robot.joint_names}
-        self.actuators = {n: find("actuator", n) for n in robot.joint_names}
+        self.joints = {n: find("joint", n) for n in self.joint_names}
+        self.actuators = {n: find("actuator", n) for n in self.joint_names}
         for n, actuator in self.actuators.items():  # each actuator drives the joint of its name
             if actuator.joint is not self.joints[n]:
                 raise ValueError(f"actuator {n!r} does not drive joint {n!r}")
@@ -155,7 +157,7 @@ class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # rand
                 if contact is not None:
                     geom.condim, geom.friction = contact
         if self.servo_kp_scale != 1.0:  # position actuators (general, affine bias): force = kp (ctrl - q)
-            for name in robot.joint_names:
+            for name in self.joint_names:
                 actuator = model.find("actuator", name)
                 gain, bias = np.array(actuator.gainprm, dtype=float), np.array(actuator.biasprm, dtype=float)
                 gain[0] *= self.servo_kp_scale
@@ -170,7 +172,7 @@ class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # rand
                 bias[2] = -self.servo_kv
                 actuator.biasprm = bias
         if self.servo_damping_scale != 1.0:  # joint damping (the servos' back-EMF drag) of the robot joints
-            for name in robot.joint_names:
+            for name in self.joint_names:
                 joint = model.find("joint", name)
                 joint.damping = (joint.damping or 0.0) * self.servo_damping_scale
 
@@ -198,7 +200,7 @@ class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # rand
     def reset_robot(self, base_position: np.ndarray, joint_positions: dict[str, float]) -> None:
         physics = self.physics
         self._error = None
-        names = list(joint_positions)
+        names = [n for n in joint_positions if n not in self._rigid_joints]  # welded ones stay put
         angles = np.array([joint_positions[n] for n in names], dtype=float)
         root = np.concatenate([np.asarray(base_position, dtype=float), [1.0, 0.0, 0.0, 0.0]])
         with physics.reset_context():  # mj_resetData: zero velocities, warnings, time, contacts

@@ -202,7 +202,7 @@ class MujocoModelOptions:
     def __init__(self, integrator: str = "implicitfast", max_render_size: int = 1024,
                  torsional_friction: float | None = None, rolling_friction: float | None = None,
                  servo_kp_scale: float = 1.0, servo_damping_scale: float = 1.0, servo_kv: float = 0.0,
-                 obstacle_inflation: float = 0.0, control_dt: float = 0.01):
+                 obstacle_inflation: float = 0.0, control_dt: float = 0.01, rigid_upper_body: bool = True):
         if integrator not in INTEGRATORS:
             raise ValueError(f"backend.integrator must be one of {', '.join(INTEGRATORS)}; got {integrator!r}")
         self.integrator = integrator
@@ -220,6 +220,16 @@ class MujocoModelOptions:
         self.servo_kv, self.control_dt = float(servo_kv), float(control_dt)
         self._feed_forward: ServoFeedForward | None = None  # when servo_kv > 0
         self.max_render_size = int(max_render_size)
+        if not isinstance(rigid_upper_body, (bool, np.bool_)):
+            raise ValueError(f"backend.rigid_upper_body must be true or false, got {rigid_upper_body!r}")
+        self.rigid_upper_body = bool(rigid_upper_body)
+        self.joint_names: tuple[str, ...] = ()  # the robot joints the built model has
+        self._rigid_joints: frozenset[str] = frozenset()
+
+    def _model_joints(self, robot: RobotSpec) -> None:
+        """Which joints the model has: all, or the legs only when the upper body is welded."""
+        self._rigid_joints = frozenset(robot.upper_body_joint_names if self.rigid_upper_body else ())
+        self.joint_names = tuple(n for n in robot.joint_names if n not in self._rigid_joints)
 
 
 class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomization verbs: mujoco_randomization
@@ -230,7 +240,8 @@ class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomi
 
     # -- world ------------------------------------------------------------------------------
     def build(self, robot: RobotSpec, physics_dt: float) -> None:
-        built = build_mjcf(robot, floor=True, timestep=physics_dt)
+        self._model_joints(robot)
+        built = build_mjcf(robot, floor=True, timestep=physics_dt, rigid_upper_body=self.rigid_upper_body)
         spec = built.spec
         spec.option.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{self.integrator.upper()}")
         spec.visual.global_.offwidth = self.max_render_size
@@ -258,7 +269,7 @@ class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomi
             m.actuator_gainprm[:, 0] *= self.servo_kp_scale
             m.actuator_biasprm[:, 1] *= self.servo_kp_scale
         if self.servo_damping_scale != 1.0:  # joint damping (the servos' back-EMF drag) of the robot joints
-            for name in robot.joint_names:
+            for name in self.joint_names:
                 m.dof_damping[m.jnt_dofadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)]] *= self.servo_damping_scale
         self.data = d = mujoco.MjData(m)
 
@@ -277,9 +288,9 @@ class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomi
         free = jid(FREE_JOINT)
         self._free_q = int(m.jnt_qposadr[free])
         self._free_v = int(m.jnt_dofadr[free])
-        self.joint_qpos = {n: int(m.jnt_qposadr[jid(n)]) for n in robot.joint_names}
-        self.joint_dof = {n: int(m.jnt_dofadr[jid(n)]) for n in robot.joint_names}
-        self.actuator = {n: aid(n) for n in robot.joint_names}
+        self.joint_qpos = {n: int(m.jnt_qposadr[jid(n)]) for n in self.joint_names}
+        self.joint_dof = {n: int(m.jnt_dofadr[jid(n)]) for n in self.joint_names}
+        self.actuator = {n: aid(n) for n in self.joint_names}
         for n, a in self.actuator.items():  # each actuator drives the joint of its name
             if m.actuator_trnid[a, 0] != jid(n):
                 raise ValueError(f"actuator {n!r} does not drive joint {n!r}")
@@ -338,6 +349,8 @@ class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomi
         d.qpos[self._free_q:self._free_q + 3] = base_position
         d.qpos[self._free_q + 3:self._free_q + 7] = (1.0, 0.0, 0.0, 0.0)
         for name, angle in joint_positions.items():
+            if name in self._rigid_joints:
+                continue  # welded at its walk-ready angle
             d.qpos[self.joint_qpos[name]] = angle
             d.ctrl[self.actuator[name]] = angle
         if self._feed_forward is not None:  # target velocities restart from rest at these angles

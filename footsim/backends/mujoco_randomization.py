@@ -205,8 +205,8 @@ class MujocoRandomization:
         nominal = capture(
             model, ident(body, robot.base_link), [ident(body, robot.foot_link(s)) for s in ("left", "right")],
             ident(mujoco.mjtObj.mjOBJ_GEOM, FLOOR_GEOM),
-            [ident(actuator, n) for n in robot.joint_names],
-            [int(model.jnt_dofadr[ident(joint, n)]) for n in robot.joint_names],
+            [ident(actuator, n) for n in self.joint_names],  # the joints the model has
+            [int(model.jnt_dofadr[ident(joint, n)]) for n in self.joint_names],
         )
         ff = getattr(self, "_feed_forward", None)  # the MuJoCo servo's kv/kp feed-forward, if any
         nominal_ff = None

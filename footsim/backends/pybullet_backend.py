@@ -90,13 +90,12 @@ def model_urdf(spec: RobotSpec, rigid_upper_body: bool) -> str:
     the walk-ready angles (folded into the joint origin), so Bullet merges them into the torso."""
     robot = build_urdf(spec)
     if rigid_upper_body:
-        legs = set(LEG_JOINT_NAMES)
+        upper_body = set(spec.upper_body_joint_names)
         for element in robot.findall("joint"):
             name = element.get("name")
-            if element.get("type") != "revolute" or name in legs:
+            if element.get("type") != "revolute" or name not in upper_body:
                 continue
-            joint = spec.joint(name)
-            rotation = joint.origin.rotation @ _axis_rotation(np.asarray(joint.axis), spec.walk_ready.get(name, 0.0))
+            rotation = spec.walk_ready_rotation(name)
             element.set("type", "fixed")
             for tag in ("axis", "limit", "dynamics"):
                 child = element.find(tag)
@@ -105,12 +104,6 @@ def model_urdf(spec: RobotSpec, rigid_upper_body: bool) -> str:
             element.find("origin").set("rpy", " ".join(f"{v:.9g}" for v in _rpy(rotation)))
     ET.indent(robot)
     return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
-
-
-def _axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
-    x, y, z = axis
-    k = np.array([[0, -z, y], [z, 0, -x], [-y, x, 0]])
-    return np.eye(3) + math.sin(angle) * k + (1 - math.cos(angle)) * (k @ k)
 
 
 #: Idle built worlds (a DIRECT client with floor and robot loaded), keyed by the model.  Bullet

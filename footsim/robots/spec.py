@@ -448,6 +448,18 @@ class RobotSpec:
             self.joint(name)  # raises naming the missing joint
         return names
 
+    @property
+    def upper_body_joint_names(self) -> tuple[str, ...]:
+        """Every joint that is not a leg joint (arms, head), in ``joint_names`` order."""
+        legs = set(self.leg_joint_names(Side.LEFT) + self.leg_joint_names(Side.RIGHT))
+        return tuple(name for name in self.joint_names if name not in legs)
+
+    def walk_ready_rotation(self, name: str) -> np.ndarray:
+        """Rotation of joint ``name``'s child frame in its parent's at the walk-ready angle: the
+        fixed origin of that joint in a model whose upper body is rigid."""
+        joint = self.joint(name)
+        return joint.origin.rotation @ _axis_angle(np.asarray(joint.axis), self.walk_ready.get(name, 0.0))
+
     def leg_limits(self, side: Side | str) -> np.ndarray:
         """``(6, 2)`` [lower, upper] of the leg joints of ``side`` in chain order (the form
         ``footsim.walk.ik.leg_ik(..., limits=)`` takes)."""
