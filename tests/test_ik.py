@@ -3,7 +3,9 @@
 import numpy as np
 import pytest
 
-from footsim.walk.ik import LEG_JOINT_NAMES, LegGeometry, leg_fk, leg_ik, rotation_from_rpy, rpy_from_rotation
+from footsim.walk.ik import (
+    LEG_JOINT_NAMES, LegGeometry, leg_fk, leg_ik, leg_ik_rotation, legs_ik, rotation_from_rpy, rpy_from_rotation,
+)
 
 LEG = LegGeometry()
 SIDES = ["left", "right"]
@@ -121,3 +123,46 @@ def test_non_finite_targets_raise(bad):
 def test_unknown_side_raises():
     with pytest.raises(ValueError):
         leg_ik(np.zeros((1, 3)), np.zeros((1, 3)), "middle", LEG)
+
+
+@pytest.mark.parametrize("tilted_soles", [False, True])
+def test_compiled_both_legs_ik_reproduces_fk_in_any_trunk_frame(tilted_soles):
+    """legs_ik takes world-frame trunk and sole poses; FK of its answer (in the trunk frame) must
+    give back the soles, and it must agree with the numpy per-leg solver."""
+    rng = np.random.default_rng(11)
+    n = 64
+    q_true = {side: _random_joint_sets(rng, n) for side in SIDES}
+    trunk = np.vstack([rng.uniform(-1, 1, (2, n)), rng.uniform(0.3, 0.5, (1, n)),
+                       rng.uniform(-0.3, 0.3, (2, n)), rng.uniform(-np.pi, np.pi, (1, n))])
+    Rt = rotation_from_rpy(trunk[3:].T)  # (n, 3, 3)
+    world = {}
+    for side in SIDES:
+        pos, rot = leg_fk(q_true[side], side, LEG)  # in the trunk frame
+        pos_w = trunk[:3].T + np.einsum("nij,nj->ni", Rt, pos)
+        rpy_w = rpy_from_rotation(Rt @ rot)
+        if not tilted_soles:  # the walk's soles: exactly flat in the world (some become unreachable)
+            rpy_w[:, :2] = 0.0
+        world[side] = np.vstack([pos_w.T, rpy_w.T])
+    q, reachable = legs_ik(trunk, world["left"], world["right"], LEG)
+    assert q.shape == (n, 12) and reachable.sum() >= (n if tilted_soles else n // 2)
+    both = np.ones(n, dtype=bool)
+    for k, side in enumerate(SIDES):
+        sole = world[side]
+        p_local = np.einsum("nji,nj->ni", Rt, sole[:3].T - trunk[:3].T)
+        R_local = np.transpose(Rt, (0, 2, 1)) @ rotation_from_rpy(sole[3:].T)
+        q_numpy, reachable_numpy = leg_ik_rotation(p_local, R_local, LEG.side_sign(side), LEG)
+        np.testing.assert_allclose(q[:, 6 * k:6 * k + 6], q_numpy, atol=1e-12)
+        both &= reachable_numpy
+        pos, rot = leg_fk(q[reachable, 6 * k:6 * k + 6], side, LEG)
+        np.testing.assert_allclose(pos, p_local[reachable], atol=1e-9)
+        np.testing.assert_allclose(rot, R_local[reachable], atol=1e-9)
+    np.testing.assert_array_equal(reachable, both)
+    # limits: knees capped below their angle are clipped and flagged, the rest untouched
+    limits = np.tile([-4.0, 4.0], (12, 1))
+    limits[3] = [0.0, 1.0]  # left knee
+    clipped, within = legs_ik(trunk, world["left"], world["right"], LEG, limits)
+    over = q[:, 3] > 1.0 + 1e-9
+    assert over.any() and (~over).any()
+    np.testing.assert_array_equal(within, reachable & ~over)
+    np.testing.assert_allclose(clipped[:, 3], np.minimum(q[:, 3], 1.0))
+    np.testing.assert_array_equal(np.delete(clipped, 3, axis=1), np.delete(q, 3, axis=1))

@@ -47,7 +47,7 @@ import numpy as np
 from footsim import kernels2d
 from footsim.geometry import Pose2D, mean_pose, wrap_angles
 from footsim.walk.footsteps import DoubleStep, FeetState, Footstep, FootstepGeometry, Side
-from footsim.walk.ik import LEG_JOINT_NAMES, LegGeometry, apply_joint_limits, solve_leg_ik
+from footsim.walk.ik import LEG_JOINT_NAMES, LegGeometry, legs_ik
 from footsim.walk.params import WalkParams
 from footsim.walk.spline import PiecewiseQuintic, knots_state
 
@@ -174,18 +174,6 @@ def _transform_trunk_state(state: np.ndarray, frame: Pose2D) -> np.ndarray:
     return out
 
 
-def _rotation_cm(roll: np.ndarray, pitch: np.ndarray, yaw: np.ndarray) -> np.ndarray:
-    """``Rz(yaw) Ry(pitch) Rx(roll)`` component-major: ``(3, 3, n)``."""
-    cr, sr, cp, sp, cy, sy = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw)
-    return np.array(
-        [
-            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-            [-sp, cp * sr, cp * cr],
-        ]
-    )
-
-
 def _overlap_bands(x: np.ndarray, theta: np.ndarray, half_l: float, half_w: float) -> tuple[np.ndarray, np.ndarray]:
     """``footsteps._overlap_band_y`` per sample: the y interval where a foot at (x, y, theta)
     overlaps an identical foot at the origin; NaN where no y overlaps.  The band is the compiled
@@ -236,6 +224,13 @@ class QuinticWalk:
         self.freq = 1.0 / self.double_step_duration  # effective (tick-quantised) frequency
         self.half_period = 0.5 * self.double_step_duration
         self.start_ticks = (n + 1) // 2
+        # Local tick times of the two half steps of a double step (ticks k = 1..n at k·dt; those
+        # at t <= T/2 belong to the first half): the same every double step, so computed once.
+        times = np.arange(1, n + 1) * self.control_dt
+        first = times <= self.half_period + 1e-12
+        self._half_tick_times = (times[first], times[~first] - self.half_period)
+        for local in self._half_tick_times:
+            local.setflags(write=False)  # shared by every half step's plan
         if joint_limits is None:
             self._limits = None
         else:
@@ -382,19 +377,10 @@ class QuinticWalk:
 
     def _half_step_plans(self, halves) -> list[_HalfStep]:
         """Two half steps filling exactly one double step (n ticks)."""
-        n = self.ticks_per_double_step
-        dt = self.control_dt
-        plans = []
-        for i, (kind, support, feet, last, landing, phase_start) in enumerate(halves):
-            # Ticks k = 1..n of the double step; those at t <= T/2 belong to the first half.
-            k = np.arange(1, n + 1)
-            times = k * dt
-            in_half = times <= self.half_period + 1e-12 if i == 0 else times > self.half_period + 1e-12
-            local = times[in_half] - (0.0 if i == 0 else self.half_period)
-            plans.append(
-                _HalfStep(kind, support, feet.foot(support), self.half_period, last, landing, local, phase_start, 0.5)
-            )
-        return plans
+        return [
+            _HalfStep(kind, support, feet.foot(support), self.half_period, last, landing, local, phase_start, 0.5)
+            for (kind, support, feet, last, landing, phase_start), local in zip(halves, self._half_tick_times)
+        ]
 
     # --- splines -------------------------------------------------------------------------
 
@@ -643,33 +629,8 @@ class QuinticWalk:
         return self._assemble(parts, executed, feet_after, interfered)
 
     def _leg_joints(self, trunk: np.ndarray, left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """IK for both legs in one batch.  ``trunk``, ``left``, ``right``: (6, n) poses in a common frame."""
-        n = trunk.shape[1]
-        trunk_rot = _rotation_cm(trunk[ROLL], trunk[PITCH], trunk[YAW])  # (3, 3, n)
-        feet = np.concatenate([left, right], axis=1)  # both legs side by side: (6, 2n)
-        Rt = np.concatenate([trunk_rot, trunk_rot], axis=2)
-        d = feet[:3] - np.concatenate([trunk[:3], trunk[:3]], axis=1)
-        # Sole relative to the trunk: p = Rt^T d, R = Rt^T Rf.
-        p = np.einsum("jin,jn->in", Rt, d)
-        if feet[ROLL].any() or feet[PITCH].any():
-            R = np.einsum("jin,jkn->ikn", Rt, _rotation_cm(feet[ROLL], feet[PITCH], feet[YAW]))
-        else:  # the walk keeps the soles flat: Rf = Rz(yaw), so R = Rt^T Rz(yaw) in closed form
-            c, s = np.cos(feet[YAW]), np.sin(feet[YAW])
-            Rt0, Rt1 = Rt[0], Rt[1]  # rows of Rt = columns of Rt^T
-            R = np.empty((3, 3, 2 * n))
-            R[:, 0] = Rt0 * c + Rt1 * s
-            R[:, 1] = Rt1 * c - Rt0 * s
-            R[:, 2] = Rt[2]
-        sign = np.ones(2 * n)
-        sign[n:] = -1.0
-        q, reachable = solve_leg_ik(p, R, sign, self.leg)
-        joints = np.empty((n, 12))
-        joints[:, :6] = q[:, :n].T
-        joints[:, 6:] = q[:, n:].T
-        reachable = reachable[:n] & reachable[n:]
-        if self._limits is not None:
-            joints, reachable = apply_joint_limits(joints, reachable, self._limits)
-        return joints, reachable
+        """IK for both legs in one compiled call.  ``trunk``, ``left``, ``right``: (6, n) poses in a common frame."""
+        return legs_ik(trunk, left, right, self.leg, self._limits)
 
     def _assemble(self, parts, executed, feet_after: FeetState, interfered: int) -> WalkTrajectory:
         dt = self.control_dt

@@ -11,9 +11,12 @@ the ankle axes.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from footsim.kernels2d import _compiled
 
 LEG_JOINTS = ("HipYaw", "HipRoll", "HipPitch", "Knee", "AnklePitch", "AnkleRoll")
 
@@ -223,3 +226,104 @@ def leg_ik(foot_pos, foot_rpy, side, leg: LegGeometry = LegGeometry(), limits=No
     if not np.all(np.isfinite(rpy)):
         raise ValueError("leg IK target contains NaN or inf")
     return leg_ik_rotation(foot_pos, rotation_from_rpy(rpy), leg.side_sign(side), leg, limits)
+
+
+# --- both legs along a trajectory, compiled ----------------------------------------------------
+
+
+def legs_ik(trunk: np.ndarray, left: np.ndarray, right: np.ndarray, leg: LegGeometry = LegGeometry(),
+            limits: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Joint targets of both legs for trunk and sole poses ``(6, n)`` (x, y, z, roll, pitch, yaw;
+    rpy as ``Rz Ry Rx``) in one common frame: the walk engine's IK over a whole double step.
+
+    The same algebra as :func:`solve_leg_ik` (sole in the trunk frame, then the decoupled
+    solution) in one compiled loop over the samples: the numpy version's ~100 array operations
+    on 2n-vectors cost more than the rest of the walk engine together.  ``limits`` is ``(12, 2)``
+    in :data:`LEG_JOINT_NAMES` order; clipped samples become unreachable (as
+    :func:`apply_joint_limits`).  Returns ``(joints (n, 12), reachable (n,))``, both legs
+    reachable and within limits.
+    """
+    n = trunk.shape[1]
+    joints, reachable = np.empty((n, 12)), np.empty(n, dtype=np.bool_)
+    lim = np.zeros((12, 2)) if limits is None else np.ascontiguousarray(limits, dtype=float)
+    _legs_ik(np.ascontiguousarray(trunk, dtype=float), np.ascontiguousarray(left, dtype=float),
+             np.ascontiguousarray(right, dtype=float), leg.hip_offset_y, leg.hip_offset_z, leg.thigh, leg.shin,
+             leg.ankle_to_sole, lim, limits is not None, joints, reachable)
+    return joints, reachable
+
+
+@_compiled
+def _legs_ik(trunk, left, right, hip_y, hip_z, L1, L2, a2s, limits, use_limits, joints, reachable):
+    """:func:`legs_ik`'s loop: per sample the trunk rotation, then each leg's sole in the trunk
+    frame (p = Rt^T d, R = Rt^T Rf) and :func:`solve_leg_ik`'s formulas on scalars."""
+    for i in range(trunk.shape[1]):
+        cr, sr = math.cos(trunk[3, i]), math.sin(trunk[3, i])
+        cp, sp = math.cos(trunk[4, i]), math.sin(trunk[4, i])
+        cy, sy = math.cos(trunk[5, i]), math.sin(trunk[5, i])
+        t00, t01, t02 = cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr
+        t10, t11, t12 = sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr
+        t20, t21, t22 = -sp, cp * sr, cp * cr
+        ok = True
+        for side in range(2):
+            feet = left if side == 0 else right
+            sign = 1.0 if side == 0 else -1.0
+            dx, dy, dz = feet[0, i] - trunk[0, i], feet[1, i] - trunk[1, i], feet[2, i] - trunk[2, i]
+            px = t00 * dx + t10 * dy + t20 * dz
+            py = t01 * dx + t11 * dy + t21 * dz
+            pz = t02 * dx + t12 * dy + t22 * dz
+            fr, fp, fy = feet[3, i], feet[4, i], feet[5, i]
+            c, s = math.cos(fy), math.sin(fy)
+            if fr == 0.0 and fp == 0.0:  # flat sole: Rf = Rz(yaw)
+                r00, r01, r02 = t00 * c + t10 * s, t10 * c - t00 * s, t20
+                r10, r11, r12 = t01 * c + t11 * s, t11 * c - t01 * s, t21
+                r20, r21, r22 = t02 * c + t12 * s, t12 * c - t02 * s, t22
+            else:
+                cfr, sfr, cfp, sfp = math.cos(fr), math.sin(fr), math.cos(fp), math.sin(fp)
+                f00, f01, f02 = c * cfp, c * sfp * sfr - s * cfr, c * sfp * cfr + s * sfr
+                f10, f11, f12 = s * cfp, s * sfp * sfr + c * cfr, s * sfp * cfr - c * sfr
+                f20, f21, f22 = -sfp, cfp * sfr, cfp * cfr
+                r00 = t00 * f00 + t10 * f10 + t20 * f20
+                r01 = t00 * f01 + t10 * f11 + t20 * f21
+                r02 = t00 * f02 + t10 * f12 + t20 * f22
+                r10 = t01 * f00 + t11 * f10 + t21 * f20
+                r11 = t01 * f01 + t11 * f11 + t21 * f21
+                r12 = t01 * f02 + t11 * f12 + t21 * f22
+                r20 = t02 * f00 + t12 * f10 + t22 * f20
+                r21 = t02 * f01 + t12 * f11 + t22 * f21
+                r22 = t02 * f02 + t12 * f12 + t22 * f22
+            # solve_leg_ik, one sample
+            hx = -px - a2s * r02
+            hy = sign * hip_y - py - a2s * r12
+            hz = -hip_z - pz - a2s * r22
+            vx = r00 * hx + r10 * hy + r20 * hz
+            vy = r01 * hx + r11 * hy + r21 * hz
+            vz = r02 * hx + r12 * hy + r22 * hz
+            ankle_roll = math.atan2(vy, vz)
+            cos_knee = (vx * vx + vy * vy + vz * vz - (L1 * L1 + L2 * L2)) / (2.0 * L1 * L2)
+            ok = ok and abs(cos_knee) <= 1.0
+            knee = math.acos(min(max(cos_knee, -1.0), 1.0))
+            ankle_pitch = math.atan2(-L1 * math.sin(knee), L1 * math.cos(knee) + L2) - math.atan2(vx, math.hypot(vy, vz))
+            car, sar = math.cos(ankle_roll), math.sin(ankle_roll)
+            b = knee + ankle_pitch
+            cb, sb = math.cos(b), math.sin(b)
+            m01 = r01 * car - r02 * sar
+            m11 = r11 * car - r12 * sar
+            m21 = r21 * car - r22 * sar
+            r2_rolled = r21 * sar + r22 * car
+            m20 = r20 * cb + r2_rolled * sb
+            m22 = r2_rolled * cb - r20 * sb
+            k = 6 * side
+            joints[i, k] = math.atan2(-m01, m11)
+            joints[i, k + 1] = math.asin(min(max(m21, -1.0), 1.0))
+            joints[i, k + 2] = math.atan2(-m20, m22)
+            joints[i, k + 3] = knee
+            joints[i, k + 4] = ankle_pitch
+            joints[i, k + 5] = ankle_roll
+        if use_limits:
+            for j in range(12):
+                q = joints[i, j]
+                clipped = min(max(q, limits[j, 0]), limits[j, 1])
+                if abs(clipped - q) > _LIMIT_TOLERANCE:
+                    ok = False
+                joints[i, j] = clipped
+        reachable[i] = ok

@@ -21,17 +21,6 @@ from footsim.kernels2d import _compiled
 
 _POWERS = np.arange(6.0)
 _ZEROS = {1: (0.0, 0.0, 0.0), 2: (0.0, 0.0), 3: (0.0,)}
-# Monomial coefficients of the quintic on s in [0, 1] from (p0, v0, a0, p1, v1, a1) in s units.
-_NORMALISED_QUINTIC = np.array(
-    [
-        [1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-        [0.0, 1.0, 0.0, 0.0, 0.0, 0.0],
-        [0.0, 0.0, 0.5, 0.0, 0.0, 0.0],
-        [-10.0, -6.0, -1.5, 10.0, -4.0, 0.5],
-        [15.0, 8.0, 1.5, -15.0, 7.0, -1.0],
-        [-6.0, -3.0, -0.5, 6.0, -3.0, 0.5],
-    ]
-)
 _VEL_FACTORS = np.arange(1.0, 6.0)  # d/dt t^k = k t^(k-1)
 _ACC_FACTORS = np.array([2.0, 6.0, 12.0, 20.0])  # d2/dt2 t^k = k (k-1) t^(k-2)
 
@@ -70,6 +59,17 @@ def evaluate_polynomial(coefficients: np.ndarray, tau: np.ndarray) -> tuple[np.n
     return pos, vel, acc
 
 
+@_compiled
+def _quintic_high(dp, v0, a0, v1, a1, T):
+    """``c3, c4, c5`` of the quintic through (p0, v0, a0) → (p0 + dp, v1, a1) over ``T``
+    (``c0, c1, c2`` are p0, v0, a0 / 2): :func:`quintic_coefficients` on scalars."""
+    T2 = T * T
+    T3 = T2 * T
+    return ((20.0 * dp - (8.0 * v1 + 12.0 * v0) * T - (3.0 * a0 - a1) * T2) / (2.0 * T3),
+            (-30.0 * dp + (14.0 * v1 + 16.0 * v0) * T + (3.0 * a0 - 2.0 * a1) * T2) / (2.0 * T3 * T),
+            (12.0 * dp - 6.0 * (v1 + v0) * T - (a0 - a1) * T2) / (2.0 * T3 * T2))
+
+
 def knots_state(knots: Sequence[Knot], t: float) -> tuple[float, float, float]:
     """Position, velocity, acceleration at time ``t`` of the one channel through ``knots``.
 
@@ -89,13 +89,8 @@ def knots_state(knots: Sequence[Knot], t: float) -> tuple[float, float, float]:
     a1 = b[3] if len(b) > 3 else 0.0
     if not T > 0.0:
         raise ValueError("knot times must strictly increase")
-    dp = p1 - p0
-    T2 = T * T
-    T3 = T2 * T
     c2 = 0.5 * a0
-    c3 = (20.0 * dp - (8.0 * v1 + 12.0 * v0) * T - (3.0 * a0 - a1) * T2) / (2.0 * T3)
-    c4 = (-30.0 * dp + (14.0 * v1 + 16.0 * v0) * T + (3.0 * a0 - 2.0 * a1) * T2) / (2.0 * T3 * T)
-    c5 = (12.0 * dp - 6.0 * (v1 + v0) * T - (a0 - a1) * T2) / (2.0 * T3 * T2)
+    c3, c4, c5 = _quintic_high(p1 - p0, v0, a0, v1, a1, T)
     x = t - t0
     pos = p0 + x * (v0 + x * (c2 + x * (c3 + x * (c4 + x * c5))))
     vel = v0 + x * (2.0 * c2 + x * (3.0 * c3 + x * (4.0 * c4 + x * 5.0 * c5)))
@@ -146,30 +141,22 @@ class PiecewiseQuintic:
             if len(padded) < max_knots:
                 rows += padded[-1:] * (max_knots - len(padded))
         data = np.array(rows, dtype=float).reshape(n_channels, max_knots, 4)
-        if not np.isfinite(data).all():
-            raise ValueError("knot times, positions, velocities and accelerations must be finite")
         n_segments = np.array(counts) - 1
-        times = data[:, :, 0]
-        durations = times[:, 1:] - times[:, :-1]
-        valid = np.arange(max_knots - 1)[None, :] < n_segments[:, None]
-        if not (durations[valid] > 0.0).all():
-            raise ValueError("knot times must strictly increase within each channel")
-        durations[~valid] = 1.0  # padded segments: any positive length, never evaluated
-        # Segment coefficients through normalised time s = tau / T: b = A @ [p0, v0 T, a0 T^2,
-        # p1, v1 T, a1 T^2], then c_k = b_k / T^k (one matrix product for every segment).
-        scale = durations[..., None] ** _POWERS[:3]  # (channels, segments, 3): 1, T, T^2
-        boundary = np.concatenate([data[:, :-1, 1:] * scale, data[:, 1:, 1:] * scale], axis=2)
-        coefficients = (boundary @ _NORMALISED_QUINTIC.T) / durations[..., None] ** _POWERS  # (channels, segments, 6)
         n_seg_max = max_knots - 1
-        self.times = times  # (channels, max_knots); padded with each channel's last knot time
+        # Flat, power-major coefficient table: column = channel * n_seg_max + segment.  All
+        # channels' breakpoints in one sorted array: channel c's are shifted by c * span, so one
+        # searchsorted locates the segment of every (channel, time) pair at once.  One compiled
+        # call fills them (a few dozen numpy calls on tiny arrays cost ~100 µs per spline).
+        self._coefficients = np.empty((6, n_channels * n_seg_max))
+        self._segment_start = np.empty(n_channels * n_seg_max)
+        self._breaks = np.empty(n_channels * n_seg_max)
+        status, t_min, span = _segment_tables(data, n_segments, self._coefficients, self._segment_start, self._breaks)
+        if status == 1:
+            raise ValueError("knot times, positions, velocities and accelerations must be finite")
+        if status == 2:
+            raise ValueError("knot times must strictly increase within each channel")
+        self.times = data[:, :, 0]  # (channels, max_knots); padded with each channel's last knot time
         self.n_segments = n_segments
-        # Flat, power-major coefficient table: column = channel * n_seg_max + segment.
-        self._coefficients = np.ascontiguousarray(coefficients.reshape(-1, 6).T)  # (6, channels * n_seg_max)
-        self._segment_start = times[:, :-1].ravel()
-        # All channels' breakpoints in one sorted array: channel c's are shifted by c * span, so
-        # one searchsorted locates the segment of every (channel, time) pair at once.
-        t_min, t_max = float(times.min()), float(times.max())
-        span = 2.0 * (t_max - t_min) + 1.0
         # Queries are clamped into the band where the channel shift is unambiguous (times beyond a
         # channel's knots just extrapolate its first / last segment).  Within the band a time
         # before a channel's first breakpoint counts exactly the earlier channels' breakpoints,
@@ -177,7 +164,6 @@ class PiecewiseQuintic:
         band = 0.5 * (span - 1.0)
         self._query_low, self._query_high = t_min - band, t_min + span - band
         self._offsets = (np.arange(n_channels) * span)[:, None]
-        self._breaks = (times[:, 1:] + self._offsets).ravel()
         first_column = (np.arange(n_channels) * n_seg_max)[:, None]
         self._first_column = first_column
         self._last_column = first_column + (n_segments - 1)[:, None]
@@ -256,3 +242,42 @@ def _sample_positions(coefficients, segment_start, breaks, offsets, last_column,
             tau = t - segment_start[column]
             out[ch, i] = coefficients[0, column] + tau * (coefficients[1, column] + tau * (coefficients[2, column] + tau * (
                 coefficients[3, column] + tau * (coefficients[4, column] + tau * coefficients[5, column]))))
+
+
+@_compiled
+def _segment_tables(data, n_segments, coefficients, segment_start, breaks):
+    """:class:`PiecewiseQuintic`'s tables from its padded knots ``data (channels, knots, 4)``:
+    per segment column the quintic's coefficients (the closed form of
+    :func:`quintic_coefficients`), its start time and its breakpoint shifted by channel.
+    Returns ``(status, t_min, span)``: status 0 ok, 1 a non-finite knot, 2 knot times not
+    strictly increasing."""
+    n_channels, n_knots = data.shape[0], data.shape[1]
+    t_min, t_max = np.inf, -np.inf
+    for ch in range(n_channels):
+        for k in range(n_knots):
+            for j in range(4):
+                if not np.isfinite(data[ch, k, j]):
+                    return 1, 0.0, 0.0
+            t_min, t_max = min(t_min, data[ch, k, 0]), max(t_max, data[ch, k, 0])
+    span = 2.0 * (t_max - t_min) + 1.0
+    n_seg = n_knots - 1
+    for ch in range(n_channels):
+        for k in range(n_seg):
+            column = ch * n_seg + k
+            t0, t1 = data[ch, k, 0], data[ch, k + 1, 0]
+            segment_start[column] = t0
+            breaks[column] = t1 + ch * span
+            if k < n_segments[ch]:
+                T = t1 - t0
+                if not T > 0.0:
+                    return 2, 0.0, 0.0
+            else:
+                T = 1.0  # padded segment: any positive length, never evaluated
+            p0, v0, a0 = data[ch, k, 1], data[ch, k, 2], data[ch, k, 3]
+            p1, v1, a1 = data[ch, k + 1, 1], data[ch, k + 1, 2], data[ch, k + 1, 3]
+            coefficients[0, column] = p0
+            coefficients[1, column] = v0
+            coefficients[2, column] = 0.5 * a0
+            coefficients[3, column], coefficients[4, column], coefficients[5, column] = _quintic_high(
+                p1 - p0, v0, a0, v1, a1, T)
+    return 0, t_min, span
