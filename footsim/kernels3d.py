@@ -59,3 +59,36 @@ def all_finite(a):
         if not math.isfinite(v):
             return False
     return True
+
+
+@_compiled
+def quick_status(root_q, qpos, qvel, warnings, warning_ids, out_of_bounds, tilt):
+    """The driver's periodic check when all is well, in one call: True, with the base's fused
+    (roll, pitch) written into ``tilt``, when no fatal warning is set, the state is finite, the
+    base is within ``out_of_bounds`` and right side up.  False otherwise: the driver then runs
+    its full check, which names the problem (``Physics3DBackend._full_status``).
+
+    ``root_q`` is the free joint's (x, y, z, w, qx, qy, qz) view of ``qpos``.  The tilt is
+    ``fused_roll_pitch`` of the base rotation: the rotation matrix's R[2,1] = 2 (yz + wx) and
+    −R[2,0] = 2 (wy − xz), the products MuJoCo's ``mju_quat2Mat`` and ``quat_to_matrix`` form.
+    Right side up is R[2,2] ≥ 0 in both of their forms.
+    """
+    for i in warning_ids:
+        if warnings[i] != 0:
+            return False
+    for v in qpos:
+        if not math.isfinite(v):
+            return False
+    for v in qvel:
+        if not math.isfinite(v):
+            return False
+    for i in range(3):
+        if abs(root_q[i]) > out_of_bounds:
+            return False
+    w, x, y, z = root_q[3], root_q[4], root_q[5], root_q[6]
+    if 1 - 2 * (x * x + y * y) < 0.0 or w * w - x * x - y * y + z * z < 0.0:
+        return False
+    s_pitch, s_roll = 2.0 * (w * y - x * z), 2.0 * (y * z + w * x)
+    tilt[0] = math.asin(max(-1.0, min(1.0, s_roll)))
+    tilt[1] = math.asin(max(-1.0, min(1.0, s_pitch)))
+    return True

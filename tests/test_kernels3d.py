@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from footsim.backends.physics3d import TrunkStabilizer
-from footsim.kernels3d import all_finite, control_tick
+from footsim.kernels3d import all_finite, control_tick, quick_status
 
 GAINS = {"hip_roll": 0.5228, "hip_pitch": -0.1629, "ankle_roll": 0.0798, "ankle_pitch": -0.0843}
 
@@ -163,3 +163,61 @@ def test_compiled_tick_walks_bit_identically(name, case):
     np.testing.assert_array_equal(_bits(qpos_c), _bits(qpos_v))
     np.testing.assert_array_equal(_bits(ctrl_c), _bits(ctrl_v))
     assert results_c == results_v
+
+
+@pytest.mark.parametrize("name", ["mujoco", "dm_control"])
+def test_quick_status_equals_the_full_check(name):
+    """The compiled periodic check (``quick_status``) gives the full check's verdict and tilt bit
+    for bit while all is well, and hands every problem to the full check (which names it)."""
+    pytest.importorskip("mujoco")
+    if name == "dm_control":
+        pytest.importorskip("dm_control")
+    from footsim.geometry import Pose2D
+    from footsim.tasks.scenes import Scene
+    from footsim.walkcheck import make_backend
+
+    backend = make_backend(name)
+    try:
+        backend.reset(Scene(goal=Pose2D(100.0, 0.0, 0.0)), np.random.default_rng(0))
+        sim = backend.sim
+        root_q, qpos, qvel, warnings, warning_ids = sim.status_arrays()
+        saved_q, saved_v = qpos.copy(), qvel.copy()
+        rng = np.random.default_rng(3)
+        quick_used = 0
+        cases = [("upright", None)] + [("tilted", i) for i in range(200)] + [
+            ("upside down", None), ("nan qvel", None), ("inf qpos", None), ("out of bounds", None), ("warning", None)]
+        for kind, _ in cases:
+            qpos[:], qvel[:] = saved_q, saved_v
+            warnings[:] = 0
+            if kind == "tilted":  # any orientation, most of them beyond the fall threshold
+                quat = rng.normal(size=4)
+                root_q[3:7] = quat / np.linalg.norm(quat)
+                root_q[:3] = rng.uniform(-60, 60, 3) if rng.random() < 0.1 else rng.normal(0, 1, 3)
+            elif kind == "upside down":
+                root_q[3:7] = (0.0, 1.0, 0.0, 0.0)
+            elif kind == "nan qvel":
+                qvel[-1] = np.nan
+            elif kind == "inf qpos":
+                qpos[-1] = np.inf
+            elif kind == "out of bounds":
+                root_q[1] = backend.out_of_bounds + 1.0
+            elif kind == "warning":
+                warnings[warning_ids[0]] = 1
+            backend._tilt, backend._max_tilt = (9.0, 9.0), 0.0
+            quick = backend._status()
+            quick_tilt, quick_max = backend._tilt, backend._max_tilt
+            backend._tilt, backend._max_tilt = (9.0, 9.0), 0.0
+            full = backend._full_status()
+            assert quick == full, kind
+            assert quick_tilt == backend._tilt and quick_max == backend._max_tilt, kind
+            if kind in ("nan qvel", "inf qpos", "out of bounds", "warning"):
+                assert quick[0] is not None, kind  # a named sim error
+            if kind == "upside down":
+                assert quick == (None, True) and quick_tilt == (math.pi / 2, math.pi / 2)
+            tilt = np.zeros(2)
+            quick_used += quick_status(*sim.status_arrays(), backend.out_of_bounds, tilt)
+        assert quick_used >= 50  # the compiled path did the common case (half the random quaternions are upside down)
+    finally:
+        qpos[:], qvel[:] = saved_q, saved_v
+        warnings[:] = 0
+        backend.close()

@@ -227,6 +227,11 @@ class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # rand
         ff = self._feed_forward
         return self._root_q[3:7], self._ctrl, self._leg_ids, None if ff is None else ff.state
 
+    def status_arrays(self):
+        if self._error is not None:  # a PhysicsError: the full check reports it
+            return None
+        return self._root_q, self._qpos, self._qvel, self._warnings, self._warning_ids
+
     def advance(self, n_steps: int) -> None:
         if self._error is not None:
             return  # the state is no longer valid; the driver ends the episode at its next check

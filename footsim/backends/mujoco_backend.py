@@ -311,6 +311,7 @@ class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomi
         self._sole_sites = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, n) for n in ("l_sole", "r_sole")]
         self._warning_ids = fatal_warning_ids()
         self._warnings = d.warning.number  # a view: d.warning builds a new wrapper per access
+        self._status_arrays = (d.qpos[self._free_q:self._free_q + 7], d.qpos, d.qvel, self._warnings, self._warning_ids)
         self._rot = np.zeros(9)
         self._step = mujoco.mj_step
         self._park_all()
@@ -378,6 +379,9 @@ class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomi
         q, ff = self._free_q, self._feed_forward
         return self.data.qpos[q + 3:q + 7], self.data.ctrl, self._leg_ctrl, None if ff is None else ff.state
 
+    def status_arrays(self):
+        return self._status_arrays
+
     def advance(self, n_steps: int) -> None:
         self._step(self.model, self.data, n_steps)
 
@@ -427,7 +431,7 @@ class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomi
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
-        self.model = self.data = self._warnings = None
+        self.model = self.data = self._warnings = self._status_arrays = None
 
 
 class MujocoBackend(Physics3DBackend):

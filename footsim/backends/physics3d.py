@@ -18,7 +18,7 @@ from functools import partial
 import numpy as np
 
 from footsim.backends.base import Backend, RenderOverlay, StepResult
-from footsim.kernels3d import all_finite, control_tick
+from footsim.kernels3d import all_finite, control_tick, quick_status
 from footsim.geometry import Pose2D
 from footsim.robots.spec import RobotSpec
 from footsim.tasks.scenes import Scene
@@ -136,6 +136,14 @@ class PhysicsSim(ABC):
         ``ctrl``: the live actuator-input array; ``leg_ids``: its index of each leg joint;
         ``feed_forward``: the servo feed-forward's (2, 12) [gain, previous] or None.  None (the
         default): the driver calls the verbs."""
+        return None
+
+    def status_arrays(self) -> tuple | None:
+        """For a sim whose state lives in numpy arrays: ``(root_q, qpos, qvel, warnings,
+        warning_ids)`` (live views: the free joint's 7 coordinates, the whole state, the
+        warning counters and the fatal ones' indices) so that the driver's periodic check is
+        one compiled call (``footsim.kernels3d.quick_status``) while all is well.  None (the
+        default, or while the sim holds an error of its own): the driver calls the verbs."""
         return None
 
     @abstractmethod
@@ -275,6 +283,7 @@ class Physics3DBackend(Backend):
         self._rng = np.random.default_rng(0)
         self.randomization_detail: dict[str, float] = {}  # directions drawn from the backend rng
         self._tilt, self._max_tilt = (0.0, 0.0), 0.0  # fused (roll, pitch) at the last check; max this step
+        self._tilt_buffer = np.zeros(2)  # quick_status writes the tilt here
 
     # -- randomization --------------------------------------------------------------------
     @property
@@ -453,6 +462,18 @@ class Physics3DBackend(Backend):
         return self._status()[1]
 
     def _status(self) -> tuple[str | None, bool]:
+        """``(sim error or None, fallen)``; also records the fused roll/pitch.  While all is well
+        one compiled call does it (the same values as :meth:`_full_status`, ~1 µs instead of
+        ~20 µs, 12 times per double step); otherwise the full check names the problem."""
+        arrays = self.sim.status_arrays()
+        if arrays is not None and quick_status(*arrays, self.out_of_bounds, self._tilt_buffer):
+            roll, pitch = float(self._tilt_buffer[0]), float(self._tilt_buffer[1])
+            self._tilt = (roll, pitch)
+            self._max_tilt = max(self._max_tilt, abs(roll), abs(pitch))
+            return None, abs(roll) > self.fall_threshold or abs(pitch) > self.fall_threshold
+        return self._full_status()
+
+    def _full_status(self) -> tuple[str | None, bool]:
         """``(sim error or None, fallen)`` from one read of the base: the simulator's own
         verdict, NaN and out-of-bounds checks, then fused roll/pitch against the threshold."""
         error = self.sim.sim_error()
