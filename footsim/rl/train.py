@@ -43,9 +43,16 @@ def build_vec_env(cfg: DictConfig):
     if kind == "auto":  # the 2D env is far cheaper than inter-process messaging
         kind = "dummy" if cfg.backend.name == "pymunk" or n_envs == 1 else "subproc"
     if kind == "subproc":  # a missing simulator: its clear ImportError here, not a worker's broken pipe
-        from footsim.backends.base import backend_class
+        import multiprocessing
+
+        from footsim.backends.base import BACKENDS, backend_class
 
         backend_class(cfg.backend.name)
+        # Workers fork from a forkserver that has already imported torch (SB3's worker loop),
+        # numba, the env and the simulator, so they share those pages: measured 153 MB PSS per
+        # MuJoCo worker instead of 268 MB (docs/BENCHMARKS.md).  No effect once a forkserver runs.
+        multiprocessing.set_forkserver_preload(
+            ["stable_baselines3.common.vec_env", "footsim.env", BACKENDS[cfg.backend.name].target.split(":")[0]])
     factories = [_env_factory(cfg, i) for i in range(n_envs)]
     venv = DummyVecEnv(factories) if kind == "dummy" else SubprocVecEnv(factories, start_method="forkserver")
     venv.seed(int(cfg.seed))
