@@ -267,3 +267,32 @@ def test_obstacle_contact_means_touching_not_merely_near(backend):
         if abs(gap) > 1e-4:  # skip exact touching, where the two queries may round differently
             assert sim.obstacle_contact() == (gap < 0.0), (x, gap)
     assert near_but_apart >= 1  # the case the check exists for was exercised
+
+
+def test_base_tilt_from_the_quaternion_matches_the_rotation_matrix(backend):
+    """The per-tick tilt read (quaternion algebra) against fused_roll_pitch of base_pose's
+    matrix (pybullet's getMatrixFromQuaternion), for random orientations and for an inertial
+    frame rotated against the link frame (a robot whose base inertia is not diagonal)."""
+    from footsim.backends.physics3d import fused_roll_pitch
+
+    sim = backend.sim
+    backend.reset(EMPTY, np.random.default_rng(0))
+    rng = np.random.default_rng(5)
+    saved = sim._com_rot, sim._com_rows
+    try:
+        for com_rotated in (False, True):
+            if com_rotated:
+                a = rng.normal(size=3)
+                k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+                rot, _ = np.linalg.qr(np.eye(3) + k)  # some rotation
+                rot *= np.sign(np.linalg.det(rot))
+                sim._com_rot, sim._com_rows = rot, (tuple(rot[0]), tuple(rot[1]))
+            for _ in range(300):
+                q = rng.normal(size=4)
+                position = pybullet.getBasePositionAndOrientation(sim.robot_id, physicsClientId=sim.client)[0]
+                pybullet.resetBasePositionAndOrientation(sim.robot_id, position, (q / np.linalg.norm(q)).tolist(),
+                                                         physicsClientId=sim.client)
+                np.testing.assert_allclose(sim.base_tilt(), fused_roll_pitch(sim.base_pose()[1]), atol=1e-9)
+    finally:
+        sim._com_rot, sim._com_rows = saved
+        backend.reset(EMPTY, np.random.default_rng(0))
