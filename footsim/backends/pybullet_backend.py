@@ -527,7 +527,7 @@ class PybulletSim(PhysicsSim):
         return np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[:, :, :3].copy()
 
     _WORLD_ATTRS = ("client", "floor_id", "robot_id", "joint_index", "link_index", "joint_names", "_filters",
-                    "_com_pos", "_com_orn", "_com_rot", "obstacle_ids", "_free", "_pool_key", "_goal_marker",
+                    "_com_pos", "_com_orn", "_com_rot", "_com_rows", "obstacle_ids", "_free", "_pool_key", "_goal_marker",
                     "_goal_arrow", "_nominal_dynamics")
 
     def close(self) -> None:
