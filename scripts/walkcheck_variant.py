@@ -1,0 +1,57 @@
+"""The walk check for one backend with option overrides, plus extra random sequences: how does a
+backend setting change the executed displacement (error against the 2D geometry, as
+``footsim-walkcheck``) and the falls?
+
+    python scripts/walkcheck_variant.py backend=pybullet ["backend.stabilizer={hip_roll: 0.5}" ...] [extra=5]
+
+Prints one line per variant: each walk-check sequence's error in % (F = fell), then the errors of
+``extra`` random 50-double-step sequences (seeds 3000, 3001, ...).  ``backend.KEY=VALUE``
+overrides a backend option (YAML values).
+"""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+import yaml
+
+import footsim.walkcheck as wc
+from footsim import config as fconf
+
+
+def main(argv: list[str]) -> None:
+    name, extra, overrides = "mujoco", 5, {}
+    for arg in argv:
+        key, sep, value = arg.partition("=")
+        if not sep:
+            raise SystemExit(f"expected key=value, got {arg!r}")
+        if key == "backend":
+            name = value
+        elif key == "extra":
+            extra = int(value)
+        elif key.startswith("backend."):
+            overrides[key.removeprefix("backend.")] = yaml.safe_load(value)
+        else:
+            raise SystemExit(f"unknown key {key!r}; keys: backend, extra, backend.<option>")
+    walk = fconf.build_walk(fconf.load_preset("walk", fconf.walk_preset_for(name)))
+    backend = fconf.build_backend(fconf.load_preset("backend", {"name": name, **overrides}),
+                                  fconf.build_robot("wolfgang"), walk)
+    geometric = wc.make_backend("pymunk")
+    sequences = wc.standard_sequences() + [
+        wc.Sequence(f"random seed {3000 + i}", np.random.default_rng(3000 + i).uniform(-1, 1, size=(50, 6)), "translation")
+        for i in range(extra)]
+    cells = []
+    try:
+        for sequence in sequences:
+            commanded, executed = wc.run_sequence(geometric, sequence), wc.run_sequence(backend, sequence)
+            error = wc._error_ratio(executed, commanded, sequence.measure)
+            cells.append(f"{sequence.name}: {'F' if executed['fell'] else ''}{100 * error:.0f} %")
+    finally:
+        backend.close()
+        geometric.close()
+    print(f"{name} {overrides or ''}: " + "; ".join(cells))
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
