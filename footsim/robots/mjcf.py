@@ -173,24 +173,20 @@ def build_mjcf(spec: RobotSpec, *, floor: bool = True, timestep: float = TIMESTE
 
     def add_children(parent_body, parent_link: str) -> None:
         for joint in spec.child_joints(parent_link):
-            if joint.name in rigid:
-                body = parent_body.add_body(name=joint.child, pos=list(joint.origin.xyz),
-                                            quat=_quat(spec.walk_ready_rotation(joint.name)))
-                fill(body, spec.link(joint.child))
-                add_children(body, joint.child)
-                continue
-            body = parent_body.add_body(name=joint.child, pos=list(joint.origin.xyz),
-                                        quat=_quat(joint.origin.rotation))
-            body.add_joint(
-                name=joint.name,
-                type=mujoco.mjtJoint.mjJNT_HINGE,
-                axis=list(joint.axis),
-                range=[joint.lower, joint.upper],
-                limited=mujoco.mjtLimited.mjLIMITED_TRUE,
-                damping=joint.servo.damping,
-                armature=joint.servo.armature,
-                frictionloss=joint.servo.frictionloss,
-            )
+            welded = joint.name in rigid  # the walk-ready angle folded into the body's frame
+            rotation = spec.walk_ready_rotation(joint.name) if welded else joint.origin.rotation
+            body = parent_body.add_body(name=joint.child, pos=list(joint.origin.xyz), quat=_quat(rotation))
+            if not welded:
+                body.add_joint(
+                    name=joint.name,
+                    type=mujoco.mjtJoint.mjJNT_HINGE,
+                    axis=list(joint.axis),
+                    range=[joint.lower, joint.upper],
+                    limited=mujoco.mjtLimited.mjLIMITED_TRUE,
+                    damping=joint.servo.damping,
+                    armature=joint.servo.armature,
+                    frictionloss=joint.servo.frictionloss,
+                )
             fill(body, spec.link(joint.child))
             add_children(body, joint.child)
 
