@@ -21,6 +21,17 @@ from footsim.kernels2d import _compiled
 
 
 @_compiled
+def _fused_roll_pitch(quat):
+    """Fused (roll, pitch) of the unit quaternion ``quat`` (w, x, y, z): the rotation matrix's
+    R[2,1] = 2 (yz + wx) and −R[2,0] = 2 (wy − xz), clamped as ``quat_fused_roll_pitch`` clamps
+    them (a NaN passes through to asin)."""
+    w, x, y, z = quat[0], quat[1], quat[2], quat[3]
+    s_pitch, s_roll = 2.0 * (w * y - x * z), 2.0 * (y * z + w * x)
+    return (math.asin(-1.0 if s_roll < -1.0 else 1.0 if s_roll > 1.0 else s_roll),
+            math.asin(-1.0 if s_pitch < -1.0 else 1.0 if s_pitch > 1.0 else s_pitch))
+
+
+@_compiled
 def control_tick(targets, trunk, quat, gains, feed_forward, ctrl, leg_ids, k):
     """Write control tick ``k``'s leg commands into ``ctrl``.
 
@@ -34,11 +45,7 @@ def control_tick(targets, trunk, quat, gains, feed_forward, ctrl, leg_ids, k):
     (None arguments are resolved at compile time: each combination is its own specialisation.)
     """
     if gains is not None:
-        w, x, y, z = quat[0], quat[1], quat[2], quat[3]
-        s_pitch, s_roll = 2.0 * (w * y - x * z), 2.0 * (y * z + w * x)
-        # The clamps as written in quat_fused_roll_pitch (a NaN passes through to asin).
-        roll = math.asin(-1.0 if s_roll < -1.0 else 1.0 if s_roll > 1.0 else s_roll)
-        pitch = math.asin(-1.0 if s_pitch < -1.0 else 1.0 if s_pitch > 1.0 else s_pitch)
+        roll, pitch = _fused_roll_pitch(quat)
         roll_error, pitch_error = roll - trunk[k, 3], pitch - trunk[k, 4]
     for j in range(targets.shape[1]):
         t = targets[k, j]
@@ -69,9 +76,9 @@ def quick_status(root_q, qpos, qvel, warnings, warning_ids, out_of_bounds, tilt)
     its full check, which names the problem (``Physics3DBackend._full_status``).
 
     ``root_q`` is the free joint's (x, y, z, w, qx, qy, qz) view of ``qpos``.  The tilt is
-    ``fused_roll_pitch`` of the base rotation: the rotation matrix's R[2,1] = 2 (yz + wx) and
-    −R[2,0] = 2 (wy − xz), the products MuJoCo's ``mju_quat2Mat`` and ``quat_to_matrix`` form.
-    Right side up is R[2,2] ≥ 0 in both of their forms.
+    ``fused_roll_pitch`` of the base rotation (:func:`_fused_roll_pitch`: the products MuJoCo's
+    ``mju_quat2Mat`` and ``quat_to_matrix`` form).  Right side up is R[2,2] ≥ 0 in both of
+    their forms.
     """
     for i in warning_ids:
         if warnings[i] != 0:
@@ -88,7 +95,5 @@ def quick_status(root_q, qpos, qvel, warnings, warning_ids, out_of_bounds, tilt)
     w, x, y, z = root_q[3], root_q[4], root_q[5], root_q[6]
     if 1 - 2 * (x * x + y * y) < 0.0 or w * w - x * x - y * y + z * z < 0.0:
         return False
-    s_pitch, s_roll = 2.0 * (w * y - x * z), 2.0 * (y * z + w * x)
-    tilt[0] = math.asin(max(-1.0, min(1.0, s_roll)))
-    tilt[1] = math.asin(max(-1.0, min(1.0, s_pitch)))
+    tilt[0], tilt[1] = _fused_roll_pitch(root_q[3:7])
     return True

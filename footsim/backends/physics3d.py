@@ -467,11 +467,14 @@ class Physics3DBackend(Backend):
         ~20 µs, 12 times per double step); otherwise the full check names the problem."""
         arrays = self.sim.status_arrays()
         if arrays is not None and quick_status(*arrays, self.out_of_bounds, self._tilt_buffer):
-            roll, pitch = float(self._tilt_buffer[0]), float(self._tilt_buffer[1])
-            self._tilt = (roll, pitch)
-            self._max_tilt = max(self._max_tilt, abs(roll), abs(pitch))
-            return None, abs(roll) > self.fall_threshold or abs(pitch) > self.fall_threshold
+            return None, self._record_tilt(float(self._tilt_buffer[0]), float(self._tilt_buffer[1]))
         return self._full_status()
+
+    def _record_tilt(self, roll: float, pitch: float) -> bool:
+        """Keep the fused roll/pitch of this check (and the step's maximum); fallen?"""
+        self._tilt = (roll, pitch)
+        self._max_tilt = max(self._max_tilt, abs(roll), abs(pitch))
+        return abs(roll) > self.fall_threshold or abs(pitch) > self.fall_threshold
 
     def _full_status(self) -> tuple[str | None, bool]:
         """``(sim error or None, fallen)`` from one read of the base: the simulator's own
@@ -487,10 +490,7 @@ class Physics3DBackend(Backend):
         if rotation[2, 2] < 0.0:
             self._tilt, self._max_tilt = (math.pi / 2, math.pi / 2), math.pi / 2
             return None, True
-        roll, pitch = fused_roll_pitch(rotation)
-        self._tilt = (roll, pitch)
-        self._max_tilt = max(self._max_tilt, abs(roll), abs(pitch))
-        return None, abs(roll) > self.fall_threshold or abs(pitch) > self.fall_threshold
+        return None, self._record_tilt(*fused_roll_pitch(rotation))
 
     def stop_walking(self) -> float:
         """Run the engine's stop sequence (back to standing); returns its duration [s]."""

@@ -253,16 +253,22 @@ def legs_ik(trunk: np.ndarray, left: np.ndarray, right: np.ndarray, leg: LegGeom
 
 
 @_compiled
+def _rpy_matrix(roll, pitch, yaw):
+    """``Rz(yaw) Ry(pitch) Rx(roll)`` as 9 floats, row by row."""
+    cr, sr = math.cos(roll), math.sin(roll)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    return (cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr,
+            sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr,
+            -sp, cp * sr, cp * cr)
+
+
+@_compiled
 def _legs_ik(trunk, left, right, hip_y, hip_z, L1, L2, a2s, limits, use_limits, joints, reachable):
     """:func:`legs_ik`'s loop: per sample the trunk rotation, then each leg's sole in the trunk
     frame (p = Rt^T d, R = Rt^T Rf) and :func:`solve_leg_ik`'s formulas on scalars."""
     for i in range(trunk.shape[1]):
-        cr, sr = math.cos(trunk[3, i]), math.sin(trunk[3, i])
-        cp, sp = math.cos(trunk[4, i]), math.sin(trunk[4, i])
-        cy, sy = math.cos(trunk[5, i]), math.sin(trunk[5, i])
-        t00, t01, t02 = cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr
-        t10, t11, t12 = sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr
-        t20, t21, t22 = -sp, cp * sr, cp * cr
+        t00, t01, t02, t10, t11, t12, t20, t21, t22 = _rpy_matrix(trunk[3, i], trunk[4, i], trunk[5, i])
         ok = True
         for side in range(2):
             feet = left if side == 0 else right
@@ -272,16 +278,13 @@ def _legs_ik(trunk, left, right, hip_y, hip_z, L1, L2, a2s, limits, use_limits, 
             py = t01 * dx + t11 * dy + t21 * dz
             pz = t02 * dx + t12 * dy + t22 * dz
             fr, fp, fy = feet[3, i], feet[4, i], feet[5, i]
-            c, s = math.cos(fy), math.sin(fy)
             if fr == 0.0 and fp == 0.0:  # flat sole: Rf = Rz(yaw)
+                c, s = math.cos(fy), math.sin(fy)
                 r00, r01, r02 = t00 * c + t10 * s, t10 * c - t00 * s, t20
                 r10, r11, r12 = t01 * c + t11 * s, t11 * c - t01 * s, t21
                 r20, r21, r22 = t02 * c + t12 * s, t12 * c - t02 * s, t22
             else:
-                cfr, sfr, cfp, sfp = math.cos(fr), math.sin(fr), math.cos(fp), math.sin(fp)
-                f00, f01, f02 = c * cfp, c * sfp * sfr - s * cfr, c * sfp * cfr + s * sfr
-                f10, f11, f12 = s * cfp, s * sfp * sfr + c * cfr, s * sfp * cfr - c * sfr
-                f20, f21, f22 = -sfp, cfp * sfr, cfp * cfr
+                f00, f01, f02, f10, f11, f12, f20, f21, f22 = _rpy_matrix(fr, fp, fy)
                 r00 = t00 * f00 + t10 * f10 + t20 * f20
                 r01 = t00 * f01 + t10 * f11 + t20 * f21
                 r02 = t00 * f02 + t10 * f12 + t20 * f22
