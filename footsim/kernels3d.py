@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from footsim.kernels2d import _compiled
 
 
@@ -57,6 +59,19 @@ def control_tick(targets, trunk, quat, gains, feed_forward, ctrl, leg_ids, k):
             ctrl[leg_ids[j]] = out
         else:
             ctrl[leg_ids[j]] = t
+
+
+@_compiled
+def stabilized_targets(targets, trunk, gains, k, roll, pitch):
+    """Tick ``k``'s joint targets corrected for the measured fused ``roll`` and ``pitch``, as a new
+    array: ``TrunkStabilizer.correct(targets[k], (roll, pitch), trunk[k, 3], trunk[k, 4])`` in one
+    call, for the sims the driver commands through the verbs (PyBullet; ~4 µs of numpy on
+    12-vectors there).  ``gains`` (2, 12) as in :func:`control_tick`."""
+    roll_error, pitch_error = roll - trunk[k, 3], pitch - trunk[k, 4]
+    out = np.empty(targets.shape[1])
+    for j in range(targets.shape[1]):
+        out[j] = targets[k, j] + (gains[0, j] * roll_error + gains[1, j] * pitch_error)
+    return out
 
 
 @_compiled

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from footsim.backends.physics3d import TrunkStabilizer
-from footsim.kernels3d import all_finite, control_tick, quick_status
+from footsim.kernels3d import all_finite, control_tick, quick_status, stabilized_targets
 
 GAINS = {"hip_roll": 0.5228, "hip_pitch": -0.1629, "ankle_roll": 0.0798, "ankle_pitch": -0.0843}
 
@@ -85,6 +85,28 @@ def test_control_tick_is_bit_identical_to_the_verb_path(stabilized, feed_forward
             if feed_forward:
                 np.testing.assert_array_equal(_bits(ff_kernel), _bits(ff_reference))
         np.testing.assert_array_equal(ctrl[untouched], before)
+
+
+def test_stabilized_targets_is_bit_identical_to_correct():
+    """The verb path's compiled correction (PyBullet) against ``TrunkStabilizer.correct``."""
+    rng = np.random.default_rng(2)
+    stabilizer = TrunkStabilizer(**GAINS)
+    for case in range(40):
+        targets, trunk = _random_case(rng, 20)
+        if case % 2:
+            trunk = np.ascontiguousarray(trunk.T).T
+        if case % 4 >= 2:
+            stabilizer.gains[:] = rng.normal(scale=0.3, size=(2, 12))
+        for k in range(20):
+            tilt = tuple(rng.normal(scale=0.3, size=2).tolist())
+            if k == 5:
+                tilt = (math.nan, 0.1)
+            if k == 6:
+                tilt = (float(trunk[k, 3]), float(trunk[k, 4]))  # zero error: signed zeros of the targets survive
+            out = stabilized_targets(targets, trunk, stabilizer.gains, k, *tilt)
+            expected = stabilizer.correct(targets[k], tilt, trunk[k, 3], trunk[k, 4])
+            np.testing.assert_array_equal(_bits(out), _bits(expected))
+            assert out is not stabilized_targets(targets, trunk, stabilizer.gains, k, *tilt)  # a new array each call
 
 
 def test_control_tick_python_function_matches_the_compiled_one():

@@ -2,11 +2,12 @@
 
 ``bench_backend(name, repeats)`` builds the backend the way ``footsim-walkcheck`` does (the walk
 preset tuned for it), walks ``repeats`` double steps of a moderate forward/turning pattern and
-records every control tick's joint targets.  It then resets and replays exactly those targets
+records every control tick's joint targets.  The timed run alternates, double step by double
+step, between the env and a replay of exactly those targets on a second instance of the backend
 through the sim's physics verbs (``set_leg_targets`` + ``advance``) — the same physics ticks
 without the walk engine, the checks or any bookkeeping.  Rates are per CPU second of this
 process (``time.process_time``), so other jobs on the machine do not count; wall-clock rates
-are reported too.
+are reported too.  Resident memory is taken with one backend built (before the replay copy).
 """
 
 from __future__ import annotations
@@ -43,7 +44,8 @@ def bench_backend(name: str, repeats: int = 100, seed: int = 0) -> dict:
     ``physics_steps_per_s`` (the same double steps' physics ticks replayed directly),
     ``ratio`` (env time / physics time, ≥ 1), ``physics_ticks_per_s`` (physics timesteps per CPU
     second in the replay), wall-clock variants ``*_wall``, ``rss_mb`` (resident memory of this
-    process after the run) and ``rss_backend_mb`` (growth caused by building and running it),
+    process after the warm-up run, with one backend built) and ``rss_backend_mb`` (growth caused
+    by building and running it),
     plus ``fell`` (whether the pattern made it fall — the figures are then not comparable).
     """
     from footsim.walkcheck import make_backend
@@ -57,31 +59,53 @@ def bench_backend(name: str, repeats: int = 100, seed: int = 0) -> dict:
         sim = getattr(backend, "sim", None)
         steps = [DoubleStep.from_action(PATTERN[i % len(PATTERN)], backend.robot.step_limits) for i in range(repeats)]
 
-        # Env: the full double step (walk engine + IK + physics + checks), recording the targets.
+        # Warm-up: the full double steps once, recording each control tick's joint targets per
+        # double step (the compiled control tick bypasses set_leg_targets, so this pass runs
+        # the verbs: the same commands, tests/test_kernels3d.py).
         backend.reset(scene, np.random.default_rng(seed))
-        recorded = []
+        recorded: list[list[np.ndarray]] = []
         if sim is not None:
             original = sim.set_leg_targets
 
             def recording(targets, _orig=original):
-                recorded.append(np.array(targets, dtype=float))
+                recorded[-1].append(np.array(targets, dtype=float))
                 _orig(targets)
 
             sim.set_leg_targets = recording
-            # warm-up run with recording to get the exact ticks, then a clean timed run; the
-            # compiled control tick bypasses set_leg_targets, so record through the verbs
-            # (the same commands: tests/test_kernels3d.py)
             backend.compiled_ticks = False
             for ds in steps:
+                recorded.append([])
                 backend.execute(ds)
             del sim.set_leg_targets, backend.compiled_ticks
+        rss_env = _rss_mb()
+        # Timed: each env double step (walk engine + IK + physics + checks) is followed by the
+        # replay of its physics ticks on a second instance of the same backend (set_leg_targets
+        # + advance, nothing else).  Alternating per double step keeps the ratio honest when
+        # the machine's speed drifts during the run.
+        replay = make_backend(name) if sim is not None else None
+        try:
             backend.reset(scene, np.random.default_rng(seed))
-        fell = False
-        t_cpu, t_wall = time.process_time(), time.perf_counter()
-        for ds in steps:
-            result = backend.execute(ds)
-            fell = fell or result.fell or result.sim_error is not None
-        env_cpu, env_wall = time.process_time() - t_cpu, time.perf_counter() - t_wall
+            if replay is not None:
+                replay.reset(scene, np.random.default_rng(seed))
+                set_targets, advance, substeps = replay.sim.set_leg_targets, replay.sim.advance, replay.substeps
+            fell = False
+            env_cpu = env_wall = phys_cpu = phys_wall = 0.0
+            for i, ds in enumerate(steps):
+                t_cpu, t_wall = time.process_time(), time.perf_counter()
+                result = backend.execute(ds)
+                env_cpu += time.process_time() - t_cpu
+                env_wall += time.perf_counter() - t_wall
+                fell = fell or result.fell or result.sim_error is not None
+                if replay is not None:
+                    t_cpu, t_wall = time.process_time(), time.perf_counter()
+                    for targets in recorded[i]:
+                        set_targets(targets)
+                        advance(substeps)
+                    phys_cpu += time.process_time() - t_cpu
+                    phys_wall += time.perf_counter() - t_wall
+        finally:
+            if replay is not None:
+                replay.close()
         out = {
             "backend": name,
             "repeats": repeats,
@@ -89,26 +113,19 @@ def bench_backend(name: str, repeats: int = 100, seed: int = 0) -> dict:
             "env_steps_per_s_wall": repeats / env_wall,
             "fell": bool(fell),
         }
-        if sim is not None:
-            backend.reset(scene, np.random.default_rng(seed))
-            substeps = backend.substeps
-            set_targets, advance = sim.set_leg_targets, sim.advance
-            t_cpu, t_wall = time.process_time(), time.perf_counter()
-            for targets in recorded:
-                set_targets(targets)
-                advance(substeps)
-            phys_cpu, phys_wall = time.process_time() - t_cpu, time.perf_counter() - t_wall
+        if replay is not None:
+            ticks = sum(map(len, recorded)) * substeps
             out.update(
                 physics_steps_per_s=repeats / phys_cpu,
                 physics_steps_per_s_wall=repeats / phys_wall,
-                physics_ticks_per_s=len(recorded) * substeps / phys_cpu,
+                physics_ticks_per_s=ticks / phys_cpu,
                 ratio=env_cpu / phys_cpu,
                 ratio_wall=env_wall / phys_wall,
                 control_dt=backend.control_dt,
                 physics_dt=backend.physics_dt,
             )
-        out["rss_mb"] = _rss_mb()
-        out["rss_backend_mb"] = out["rss_mb"] - rss_before
+        out["rss_mb"] = rss_env
+        out["rss_backend_mb"] = rss_env - rss_before
         return out
     finally:
         backend.close()

@@ -18,7 +18,7 @@ from functools import partial
 import numpy as np
 
 from footsim.backends.base import Backend, RenderOverlay, StepResult
-from footsim.kernels3d import all_finite, control_tick, quick_status
+from footsim.kernels3d import all_finite, control_tick, quick_status, stabilized_targets
 from footsim.geometry import Pose2D
 from footsim.robots.spec import RobotSpec
 from footsim.tasks.scenes import Scene
@@ -392,8 +392,8 @@ class Physics3DBackend(Backend):
         set_targets = self._send_targets if (self._latency or self._push_ticks is not None) else self.sim.set_leg_targets
         if gains is None:
             return lambda k: set_targets(targets[k])
-        correct, base_tilt = self.stabilizer.correct, self.sim.base_tilt
-        return lambda k: set_targets(correct(targets[k], base_tilt(), trunk[k, 3], trunk[k, 4]))
+        base_tilt = self.sim.base_tilt  # TrunkStabilizer.correct, compiled: stabilized_targets
+        return lambda k: set_targets(stabilized_targets(targets, trunk, gains, k, *base_tilt()))
 
     # -- episode --------------------------------------------------------------------------
     def reset(self, scene: Scene, rng: np.random.Generator) -> Pose2D:
