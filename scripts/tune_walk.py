@@ -2,12 +2,16 @@
 
     python scripts/tune_walk.py backend=mujoco trials=300 out=/tmp/tune_mujoco.db
     python scripts/tune_walk.py backend=pybullet stabilizer=1 bench=1 enqueue_current=1 trials=120 out=/tmp/tune_pybullet.db
+    python scripts/tune_walk.py backend=pybullet stabilizer=1 bench=1 freq=1.2:2.2 iterations=20,30,40 physics_hz=240,120 budget_ms=25 trials=300 out=/tmp/fast.db
 
 Objective (minimised), per sequence of ``footsim.walkcheck.standard_sequences()``: a fall or a
 sim error costs ``2 + the share of double steps not executed``; otherwise the displacement
 error ratio against the 2D backend's displacement (the walk check's pass criterion is < 0.25).
 ``bench=1`` adds footsim-bench's walking pattern as a ninth sequence (a gait the benchmark cannot
-walk would make its speed figures meaningless).
+walk would make its speed figures meaningless).  ``budget_ms=B`` adds ``2 · (t / B − 1)`` when a
+trial that did not fall took ``t`` > B ms of CPU time per double step (the speed target of
+issue 4: 40 double steps/s is 25 ms).  ``freq=LO:HI`` replaces the gait-frequency range; for
+PyBullet ``iterations=…`` and ``physics_hz=…`` are the solver-iteration and tick-rate choices.
 Search ranges: the Bit-Bots' (shared/FACTS.md), widened where our model needs it.  The best
 parameters are printed as YAML for ``conf/walk/<backend>.yaml``.
 """
@@ -15,6 +19,7 @@ parameters are printed as YAML for ``conf/walk/<backend>.yaml``.
 from __future__ import annotations
 
 import sys
+import time
 
 import numpy as np
 
@@ -57,17 +62,21 @@ STABILIZER_RANGES = {"hip_roll": (0.0, 1.2), "hip_pitch": (-0.5, 1.0), "ankle_ro
 FIXED = {"trunk_y_offset": 0.0}
 
 
-def evaluate(backend_name: str, walk: dict, backend_options: dict, commanded: dict, sequences) -> tuple[float, dict]:
+def evaluate(backend_name: str, walk: dict, backend_options: dict, commanded: dict, sequences,
+             budget_ms: float | None = None) -> tuple[float, dict]:
     robot = fconf.build_robot("wolfgang")
     cfg = fconf.load_preset("backend", {"name": backend_name, **backend_options})
     try:
         backend = fconf.build_backend(cfg, robot, fconf.build_walk(walk))
     except ValueError as err:  # e.g. feet overlapping at rest
         return 3.0 * len(sequences), {"invalid": str(err)[:80]}
-    cost, detail = 0.0, {}
+    cost, detail, steps, fell = 0.0, {}, 0, False
+    start = time.process_time()
     try:
         for seq in sequences:
             result = run_sequence(backend, seq)
+            steps += result["steps"]
+            fell = fell or bool(result["fell"] or result["sim_error"])
             if result["fell"] or result["sim_error"]:
                 c = 2.0 + 1.0 - result["steps"] / len(seq.actions)
             else:
@@ -76,6 +85,10 @@ def evaluate(backend_name: str, walk: dict, backend_options: dict, commanded: di
             cost += c
     finally:
         backend.close()
+    ms_per_step = 1e3 * (time.process_time() - start) / max(steps, 1)
+    detail["ms_per_double_step"] = round(ms_per_step, 1)
+    if budget_ms and not fell and ms_per_step > budget_ms:
+        cost += 2.0 * (ms_per_step / budget_ms - 1.0)
     return cost, detail
 
 
@@ -95,16 +108,25 @@ def main(argv: list[str]) -> None:
     pymunk = make_backend("pymunk")
     commanded = {seq.name: run_sequence(pymunk, seq) for seq in sequences}
     base = fconf.load_preset("walk", fconf.walk_preset_for(name))
+    ranges = dict(RANGES)
+    if "freq" in args:
+        lo, hi = (float(v) for v in args["freq"].split(":"))
+        ranges["freq"] = (lo, hi)
+    iterations = [int(v) for v in args.get("iterations", "30,60,90").split(",")]
+    physics_hz = [int(v) for v in args.get("physics_hz", "240").split(",")]
+    budget_ms = float(args["budget_ms"]) if "budget_ms" in args else None
 
     def objective(trial):
         walk = dict(base, **FIXED)
-        for key, (lo, hi) in RANGES.items():  # one range set: every 3D backend walks MuJoCo's gait (session 4)
+        for key, (lo, hi) in ranges.items():  # one range set: every 3D backend walks MuJoCo's gait (session 4)
             walk[key] = trial.suggest_float(key, lo, hi)
         if name == "pybullet":  # Bullet's motor and contact knobs (conf/backend/pybullet.yaml)
             options = {"position_gain_scale": trial.suggest_float("position_gain_scale", 2.0, 12.0),
                        "velocity_gain": trial.suggest_float("velocity_gain", 0.3, 2.0),
                        "spinning_friction": trial.suggest_float("spinning_friction", 0.02, 0.3, log=True),
-                       "solver_iterations": trial.suggest_categorical("solver_iterations", [30, 60, 90])}
+                       "solver_iterations": trial.suggest_categorical("solver_iterations", iterations)}
+            hz = trial.suggest_categorical("physics_hz", physics_hz)
+            options["physics_dt"] = options["control_dt"] = 1.0 / hz
         else:  # the MuJoCo model options shared by mujoco and dm_control
             options = {"physics_dt": trial.suggest_categorical("physics_dt", [0.005, 0.01]), "control_dt": 0.01,
                        "torsional_friction": trial.suggest_float("torsional_friction", 0.02, 0.1, log=True),
@@ -113,14 +135,15 @@ def main(argv: list[str]) -> None:
                        "servo_kv": trial.suggest_float("servo_kv", 1.0, 8.0)}
         if "stabilizer" in args:  # IMU feedback gains of the shared driver (TrunkStabilizer)
             options["stabilizer"] = {g: trial.suggest_float(f"stab_{g}", lo, hi) for g, (lo, hi) in STABILIZER_RANGES.items()}
-        cost, detail = evaluate(name, walk, options, commanded, sequences)
+        cost, detail = evaluate(name, walk, options, commanded, sequences, budget_ms)
         trial.set_user_attr("detail", detail)
         return cost
 
     study = optuna.create_study(direction="minimize", sampler=optuna.samplers.TPESampler(seed=int(args.get("seed", 0)), multivariate=True),
                                 storage=storage, study_name=f"walk_{name}", load_if_exists=True)
     if len(study.trials) == 0:
-        study.enqueue_trial(START)
+        if "enqueue" not in args:
+            study.enqueue_trial(START)
         if "enqueue_current" in args:  # the current conf/walk/<backend>.yaml + backend options
             backend_cfg = fconf.load_preset("backend", {"name": name})
             current = {k: base[k] for k in RANGES}
