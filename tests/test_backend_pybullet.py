@@ -207,7 +207,42 @@ def test_obstacles_and_ball_are_placed(backend):
     pools = sum(len(v) for v in sim._free.values())
     backend.reset(EMPTY, np.random.default_rng(0))
     assert sim.obstacle_ids == [] and sum(len(v) for v in sim._free.values()) == pools + 3
-    assert pybullet.getBasePositionAndOrientation(sim._free[("ball", 0.075)][0], physicsClientId=c)[0][2] < -50
+    assert pybullet.getBasePositionAndOrientation(sim._free["ball"][0], physicsClientId=c)[0][2] < -50
+
+
+def test_obstacle_bodies_take_each_episodes_radius_and_stay_few(backend):
+    """The pooled unit-size bodies, scaled per episode, have the scene's geometry: the distance
+    from a small probe sphere is the analytic distance to a cylinder (or ball) of the scene's
+    radius.  Over 60 episodes with fresh random radii the number of bodies in the world stays
+    what the first episode left (Bullet slows with every body in the world, parked or not; the
+    earlier pool kept one body per radius ever seen)."""
+    sim, c = backend.sim, backend.sim.client
+    probe_radius = 0.01
+    probe = pybullet.createMultiBody(0, pybullet.createCollisionShape(pybullet.GEOM_SPHERE, radius=probe_radius,
+                                                                       physicsClientId=c), -1, [0, 0, -50],
+                                     physicsClientId=c)
+    rng = np.random.default_rng(5)
+    counts = []
+    try:
+        for episode in range(60):
+            obstacles = tuple(Obstacle(float(x), float(y), float(r)) for x, y, r in
+                              zip(rng.uniform(1, 3, 3), rng.uniform(-2, 2, 3), rng.uniform(0.05, 0.35, 3)))
+            ball = Obstacle(float(rng.uniform(1, 3)), float(rng.uniform(-2, 2)), float(rng.uniform(0.05, 0.1)))
+            backend.reset(Scene(goal=Pose2D(5.0, 0.0, 0.0), obstacles=obstacles, ball=ball), rng)
+            counts.append(pybullet.getNumBodies(physicsClientId=c))
+            if episode % 10:
+                continue
+            for body, obstacle, is_ball in zip(sim.obstacle_ids, (*obstacles, ball), (False,) * 3 + (True,)):
+                gap = float(rng.uniform(0.01, 0.05))
+                angle = float(rng.uniform(-np.pi, np.pi))
+                z = obstacle.r if is_ball else 0.3
+                at = [obstacle.x + (obstacle.r + gap) * np.cos(angle), obstacle.y + (obstacle.r + gap) * np.sin(angle), z]
+                pybullet.resetBasePositionAndOrientation(probe, at, [0, 0, 0, 1], physicsClientId=c)
+                distance = pybullet.getClosestPoints(body, probe, 0.2, physicsClientId=c)[0][8]
+                assert distance == pytest.approx(gap - probe_radius, abs=1e-4), (episode, obstacle, is_ball)
+    finally:
+        pybullet.removeBody(probe, physicsClientId=c)
+    assert max(counts) == counts[0]
 
 
 def test_several_backends_coexist(backend):

@@ -27,7 +27,7 @@ velocity motor (the URDF friction) is replaced by the position motor.
 
 Contacts.  Lateral / spinning / rolling friction of the floor and the feet as the Bit-Bots'
 PyBullet setup (FACTS: 1.0 / 0.1 / 0.1).  Obstacles are static cylinders, the ball a static
-sphere, both rebuilt per episode.
+sphere: a small pool of unit-size bodies scaled to each episode's radii (``set_obstacles``).
 
 Determinism and memory.  The world is built once.  Each episode resets the robot's base and
 joint states and re-adds its links to the broadphase, which drops their contact manifolds, so
@@ -183,6 +183,8 @@ class PybulletSim(PhysicsSim):
         self._finalizer = None
         self.robot_id = -1
         self.obstacle_ids: list[int] = []
+        self._placed: list = []
+        self._stand_ins: list[int] = []
         self._goal_marker = -1
         self._scene: Scene | None = None
         # Randomization (apply_physics_randomization): scales in force, per-tick external wrench.
@@ -265,8 +267,10 @@ class PybulletSim(PhysicsSim):
         self._com_rot = np.array(p.getMatrixFromQuaternion(self._com_orn)).reshape(3, 3)
         self._com_rows = (tuple(self._com_rot[0].tolist()), tuple(self._com_rot[1].tolist()))
         self.obstacle_ids: list[int] = []
-        self._free: dict[tuple[str, float], list[int]] = {}
-        self._pool_key: dict[int, tuple[str, float]] = {}
+        self._free: dict[str, list[int]] = {}  # parked obstacle bodies per kind ("cylinder", "ball")
+        self._pool_kind: dict[int, str] = {}
+        self._placed: list[tuple[str, float, list[float]]] = []  # this episode's (kind, radius, position)
+        self._stand_ins: list[int] = []  # render-only visual bodies of this episode's obstacles
         self._goal_marker = -1
         # Nominal masses and inertia diagonals of every robot link (-1: the torso), for randomization.
         self._nominal_dynamics = {
@@ -297,9 +301,16 @@ class PybulletSim(PhysicsSim):
         self.other_names = [n for n in self.joint_names if n not in LEG_JOINT_NAMES]
 
     def set_obstacles(self, scene: Scene) -> None:
-        """Place the scene's cylinders and ball from a pool of static bodies (no create/remove per
-        episode: Bullet leaks a few kB per created body).  Bodies are pooled per radius (to the
-        0.1 mm); unused ones are parked far below the floor with collisions off."""
+        """Place the scene's cylinders and ball.
+
+        Bullet frees nothing of a removed body (a few kB leak per created body or shape), and
+        every body in the world costs time each tick, even parked far away with collisions off:
+        with the earlier pool of one body per radius, a PyBullet tick was 2.4× slower after 100
+        obstacle episodes and 6× after 400.  So a few bodies with *unit-size* shapes serve every
+        radius: ``unsupportedChangeScaling`` scales a body's shape to the obstacle.  Contact
+        distances then equal those of a shape created at that radius (tested).  The pooled
+        bodies are invisible (the unit shape would be drawn unscaled); ``render`` draws visual
+        stand-ins.  Unused bodies are parked far below the floor with collisions off."""
         self._scene = scene
         c = self.client
         if not self._healthy():  # after a blow-up, start from a freshly built world
@@ -308,32 +319,55 @@ class PybulletSim(PhysicsSim):
         for body in self.obstacle_ids:  # park last episode's bodies
             p.resetBasePositionAndOrientation(body, [0.0, 0.0, -100.0], [0, 0, 0, 1], physicsClientId=c)
             p.setCollisionFilterGroupMask(body, -1, 0, 0, physicsClientId=c)
-            self._free[self._pool_key[body]].append(body)
+            self._free[self._pool_kind[body]].append(body)
         self.obstacle_ids = []
+        self._remove_stand_ins()
+        self._placed = []
         items = [(o, False) for o in scene.obstacles] + ([(scene.ball, True)] if scene.ball is not None else [])
         for obstacle, is_ball in items:
-            key = ("ball" if is_ball else "cylinder", round(float(obstacle.r), 4))
-            free = self._free.setdefault(key, [])
-            body = free.pop() if free else self._new_obstacle(key)
-            z = obstacle.r if is_ball else self.obstacle_height / 2
-            p.resetBasePositionAndOrientation(body, [obstacle.x, obstacle.y, z], [0, 0, 0, 1], physicsClientId=c)
+            kind = "ball" if is_ball else "cylinder"
+            free = self._free.setdefault(kind, [])
+            body = free.pop() if free else self._new_obstacle(kind)
+            radius = float(obstacle.r)
+            p.unsupportedChangeScaling(body, [radius, radius, radius if is_ball else 1.0], physicsClientId=c)
+            position = [float(obstacle.x), float(obstacle.y), radius if is_ball else self.obstacle_height / 2]
+            p.resetBasePositionAndOrientation(body, position, [0, 0, 0, 1], physicsClientId=c)
             p.setCollisionFilterGroupMask(body, -1, _STATIC, _ROBOT, physicsClientId=c)
             self.obstacle_ids.append(body)
+            self._placed.append((kind, radius, position))
 
-    def _new_obstacle(self, key: tuple[str, float]) -> int:
+    def _new_obstacle(self, kind: str) -> int:
+        """A pooled obstacle body: unit radius (the cylinder ``obstacle_height`` tall), invisible."""
         c = self.client
-        kind, radius = key
         if kind == "ball":
-            shape = p.createCollisionShape(p.GEOM_SPHERE, radius=radius, physicsClientId=c)
-            visual = p.createVisualShape(p.GEOM_SPHERE, radius=radius, rgbaColor=[1, 1, 1, 1], physicsClientId=c)
+            shape = p.createCollisionShape(p.GEOM_SPHERE, radius=1.0, physicsClientId=c)
+            visual = p.createVisualShape(p.GEOM_SPHERE, radius=1.0, rgbaColor=[0, 0, 0, 0], physicsClientId=c)
         else:
-            shape = p.createCollisionShape(p.GEOM_CYLINDER, radius=radius, height=self.obstacle_height,
-                                           physicsClientId=c)
-            visual = p.createVisualShape(p.GEOM_CYLINDER, radius=radius, length=self.obstacle_height,
-                                         rgbaColor=[0.8, 0.25, 0.2, 1], physicsClientId=c)
+            shape = p.createCollisionShape(p.GEOM_CYLINDER, radius=1.0, height=self.obstacle_height, physicsClientId=c)
+            visual = p.createVisualShape(p.GEOM_CYLINDER, radius=1.0, length=self.obstacle_height,
+                                         rgbaColor=[0, 0, 0, 0], physicsClientId=c)
         body = p.createMultiBody(0, shape, visual, [0.0, 0.0, -100.0], physicsClientId=c)
-        self._pool_key[body] = key
+        self._pool_kind[body] = kind
         return body
+
+    def _draw_stand_ins(self) -> None:
+        """Visual-only bodies at this episode's obstacles, for ``render`` (made on the first
+        frame of an episode, removed at the next ``set_obstacles``)."""
+        if self._stand_ins or not self._placed:
+            return
+        c = self.client
+        for kind, radius, position in self._placed:
+            if kind == "ball":
+                visual = p.createVisualShape(p.GEOM_SPHERE, radius=radius, rgbaColor=[1, 1, 1, 1], physicsClientId=c)
+            else:
+                visual = p.createVisualShape(p.GEOM_CYLINDER, radius=radius, length=self.obstacle_height,
+                                             rgbaColor=[0.8, 0.25, 0.2, 1], physicsClientId=c)
+            self._stand_ins.append(p.createMultiBody(0, -1, visual, position, physicsClientId=c))
+
+    def _remove_stand_ins(self) -> None:
+        for body in self._stand_ins:
+            p.removeBody(body, physicsClientId=self.client)
+        self._stand_ins = []
 
     # -- robot ----------------------------------------------------------------------------
     def reset_robot(self, base_position: np.ndarray, joint_positions: dict[str, float]) -> None:
@@ -499,6 +533,7 @@ class PybulletSim(PhysicsSim):
     # -- rendering ------------------------------------------------------------------------
     def render(self, overlay: RenderOverlay | None, width: int, height: int) -> np.ndarray | None:
         c = self.client
+        self._draw_stand_ins()
         if overlay is not None:
             if self._goal_marker < 0:
                 disc = p.createVisualShape(p.GEOM_CYLINDER, radius=0.12, length=0.01, rgbaColor=[1.0, 0.85, 0.0, 1],
@@ -527,7 +562,7 @@ class PybulletSim(PhysicsSim):
         return np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[:, :, :3].copy()
 
     _WORLD_ATTRS = ("client", "floor_id", "robot_id", "joint_index", "link_index", "joint_names", "_filters",
-                    "_com_pos", "_com_orn", "_com_rot", "_com_rows", "obstacle_ids", "_free", "_pool_key", "_goal_marker",
+                    "_com_pos", "_com_orn", "_com_rot", "_com_rows", "obstacle_ids", "_free", "_pool_kind", "_goal_marker",
                     "_goal_arrow", "_nominal_dynamics")
 
     def close(self) -> None:
