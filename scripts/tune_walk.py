@@ -3,6 +3,7 @@
     python scripts/tune_walk.py backend=mujoco trials=300 out=/tmp/tune_mujoco.db
     python scripts/tune_walk.py backend=pybullet stabilizer=1 bench=1 enqueue_current=1 trials=120 out=/tmp/tune_pybullet.db
     python scripts/tune_walk.py backend=pybullet stabilizer=1 bench=1 freq=1.2:2.2 iterations=20,30,40 physics_hz=240,120 budget_ms=25 trials=300 out=/tmp/fast.db
+    python scripts/tune_walk.py backend=pybullet motor=servo walk=0 stabilizer=1 bench=1 iterations=10,20 physics_hz=100,120 trials=200 out=/tmp/servo.db
 
 Objective (minimised), per sequence of ``footsim.walkcheck.standard_sequences()``: a fall or a
 sim error costs ``2 + the share of double steps not executed``; otherwise the displacement
@@ -11,7 +12,9 @@ error ratio against the 2D backend's displacement (the walk check's pass criteri
 walk would make its speed figures meaningless).  ``budget_ms=B`` adds ``2 · (t / B − 1)`` when a
 trial that did not fall took ``t`` > B ms of CPU time per double step (the speed target of
 issue 4: 40 double steps/s is 25 ms).  ``freq=LO:HI`` replaces the gait-frequency range; for
-PyBullet ``iterations=…`` and ``physics_hz=…`` are the solver-iteration and tick-rate choices.
+PyBullet ``iterations=…`` and ``physics_hz=…`` are the solver-iteration and tick-rate choices, and
+``motor=servo`` searches the torque-mode servo (gains, armature, contact frictions) instead of
+Bullet's position motors.  ``walk=0`` keeps the backend's walk parameters (no walk search).
 Search ranges: the Bit-Bots' (shared/FACTS.md), widened where our model needs it.  The best
 parameters are printed as YAML for ``conf/walk/<backend>.yaml``.
 """
@@ -115,12 +118,25 @@ def main(argv: list[str]) -> None:
     iterations = [int(v) for v in args.get("iterations", "30,60,90").split(",")]
     physics_hz = [int(v) for v in args.get("physics_hz", "240").split(",")]
     budget_ms = float(args["budget_ms"]) if "budget_ms" in args else None
+    servo = args.get("motor", "position") == "servo"
+    tune_walk = args.get("walk", "1") != "0"
 
     def objective(trial):
         walk = dict(base, **FIXED)
-        for key, (lo, hi) in ranges.items():  # one range set: every 3D backend walks MuJoCo's gait (session 4)
+        for key, (lo, hi) in (ranges.items() if tune_walk else ()):  # one range set: every 3D backend walks MuJoCo's gait (session 4)
             walk[key] = trial.suggest_float(key, lo, hi)
-        if name == "pybullet":  # Bullet's motor and contact knobs (conf/backend/pybullet.yaml)
+        if name == "pybullet" and servo:  # Bullet in torque mode with MuJoCo's servo law
+            options = {"motor": "servo",
+                       "servo_kp_scale": trial.suggest_float("servo_kp_scale", 1.0, 6.0),
+                       "servo_damping_scale": trial.suggest_float("servo_damping_scale", 0.1, 1.5),
+                       "servo_kv": trial.suggest_float("servo_kv", 0.0, 10.0),
+                       "armature_scale": trial.suggest_float("armature_scale", 0.3, 3.0, log=True),
+                       "spinning_friction": trial.suggest_float("spinning_friction", 0.01, 0.3, log=True),
+                       "rolling_friction": trial.suggest_float("rolling_friction", 0.01, 0.3, log=True),
+                       "solver_iterations": trial.suggest_categorical("solver_iterations", iterations)}
+            hz = trial.suggest_categorical("physics_hz", physics_hz)
+            options["physics_dt"] = options["control_dt"] = 1.0 / hz
+        elif name == "pybullet":  # Bullet's motor and contact knobs (conf/backend/pybullet.yaml)
             options = {"position_gain_scale": trial.suggest_float("position_gain_scale", 2.0, 12.0),
                        "velocity_gain": trial.suggest_float("velocity_gain", 0.3, 2.0),
                        "spinning_friction": trial.suggest_float("spinning_friction", 0.02, 0.3, log=True),
@@ -142,7 +158,12 @@ def main(argv: list[str]) -> None:
     study = optuna.create_study(direction="minimize", sampler=optuna.samplers.TPESampler(seed=int(args.get("seed", 0)), multivariate=True),
                                 storage=storage, study_name=f"walk_{name}", load_if_exists=True)
     if len(study.trials) == 0:
-        if "enqueue" not in args:
+        if servo:  # MuJoCo's servo values (conf/backend/mujoco.yaml) on Bullet
+            mujoco_cfg = fconf.load_preset("backend", {"name": "mujoco"})
+            study.enqueue_trial({**{k: mujoco_cfg[k] for k in ("servo_kp_scale", "servo_damping_scale", "servo_kv")},
+                                 "armature_scale": 1.0, "spinning_friction": mujoco_cfg["torsional_friction"],
+                                 "rolling_friction": mujoco_cfg["rolling_friction"]})
+        elif "enqueue" not in args:
             study.enqueue_trial(START)
         if "enqueue_current" in args:  # the current conf/walk/<backend>.yaml + backend options
             backend_cfg = fconf.load_preset("backend", {"name": name})

@@ -286,11 +286,11 @@ def test_create_reset_close_cycles_do_not_leak(backend):
 
 
 def test_obstacle_contact_means_touching_not_merely_near(backend):
-    """An obstacle is moved towards the standing robot in 1 mm steps: ``obstacle_contact`` must agree
+    """An obstacle is moved towards the standing robot in 0.5 mm steps: ``obstacle_contact`` must agree
     with Bullet's own closest-point distance (touching or penetrating), also in the few millimetres
     where ``getContactPoints`` already lists points that are still apart."""
     near_but_apart = 0
-    for x in np.arange(0.216, 0.199, -0.001):
+    for x in np.arange(0.197, 0.184, -0.0005):  # the first touch is at x ≈ 0.190
         backend.reset(Scene(goal=Pose2D(1.0, 0.0, 0.0), obstacles=(Obstacle(float(x), 0.0, 0.1),)),
                       np.random.default_rng(0))
         sim = backend.sim
@@ -331,3 +331,91 @@ def test_base_tilt_from_the_quaternion_matches_the_rotation_matrix(backend):
     finally:
         sim._com_rot, sim._com_rows = saved
         backend.reset(EMPTY, np.random.default_rng(0))
+
+
+def test_reset_stands_on_flat_soles_like_mujoco(backend):
+    """The walk's standing pose leans the trunk forward (trunk_pitch); the robot must start with
+    both soles flat on the floor, not tipped onto its heels with an upright trunk.  Checked with
+    Bullet's own link frames (not the spec kinematics reset uses): feet level, soles at the floor and
+    touching it, and the trunk pitch MuJoCo's reset gives.  (Before, the feet were 0.077 rad
+    toe-up, each on one heel contact point, and the trunk upright.)"""
+    backend.reset(EMPTY, np.random.default_rng(0))
+    sim = backend.sim
+    spec = backend.robot
+    for side in ("left", "right"):
+        foot, offset = spec.sole(side)
+        state = pybullet.getLinkState(sim.robot_id, sim.link_index[foot], computeForwardKinematics=1,
+                                      physicsClientId=sim.client)
+        rotation = np.array(pybullet.getMatrixFromQuaternion(state[5])).reshape(3, 3)
+        assert abs(rotation[2, 0]) < 5e-3 and abs(rotation[2, 1]) < 5e-3  # level: no pitch, no roll
+        sole = np.asarray(state[4]) + rotation @ np.asarray(offset)
+        assert abs(sole[2]) < 2e-3  # resting on the floor
+        assert pybullet.getContactPoints(sim.robot_id, sim.floor_id, sim.link_index[foot], physicsClientId=sim.client)
+    mujoco_backend = pytest.importorskip("footsim.walkcheck").make_backend("mujoco")
+    try:
+        mujoco_backend.reset(EMPTY, np.random.default_rng(0))
+        expected_pitch = mujoco_backend.sim.base_tilt()[1]
+    finally:
+        mujoco_backend.close()
+    assert sim.base_tilt()[1] == pytest.approx(expected_pitch, abs=0.015)
+
+
+SERVO = {"name": "pybullet", "motor": "servo", "armature_scale": 1.0, "servo_kp_scale": 2.0,
+         "servo_damping_scale": 0.5, "servo_kv": 3.0}
+
+
+def _pybullet_backend(options):
+    from footsim import config as fconf
+
+    walk = fconf.build_walk(fconf.load_preset("walk", "pybullet"))
+    return fconf.build_backend(fconf.load_preset("backend", options), fconf.build_robot("wolfgang"), walk)
+
+
+def test_servo_motor_applies_mujocos_actuator_law():
+    """motor=servo: torque = clip(kp (ctrl - q) - kv q̇, ±effort) - damping q̇, ctrl = target +
+    kv/kp · target velocity (backward difference over control_dt), hand-computed from the spec."""
+    b = _pybullet_backend(SERVO)
+    try:
+        b.reset(EMPTY, np.random.default_rng(0))
+        sim, spec = b.sim, b.robot
+        previous = np.array(sim._previous)
+        targets = previous + np.linspace(-0.01, 0.01, 12)
+        sim.set_leg_targets(targets)
+        rng = np.random.default_rng(1)
+        q, qd = previous + rng.normal(0, 0.05, 12), rng.normal(0, 4.0, 12)
+        for index, angle, velocity in zip(sim.leg_indices, q, qd):
+            pybullet.resetJointState(sim.robot_id, index, angle, velocity, physicsClientId=sim.client)
+        expected, saturated = [], 0
+        for name, target, before, angle, velocity in zip(LEG_JOINT_NAMES, targets, previous, q, qd):
+            servo, effort = spec.joint(name).servo, spec.joint(name).effort
+            kp, kv, damping = 2.0 * servo.kp, 3.0, 0.5 * servo.damping
+            ctrl = target + kv / kp * (target - before) / b.control_dt
+            force = kp * (ctrl - angle) - kv * velocity
+            saturated += abs(force) > effort
+            expected.append(np.clip(force, -effort, effort) - damping * velocity)
+        np.testing.assert_allclose(sim._servo_torques(), expected, rtol=1e-9, atol=1e-9)
+        assert 0 < saturated < 12  # both branches of the clip exercised
+    finally:
+        b.close()
+
+
+def test_armature_adds_to_the_joints_mass_matrix_diagonal():
+    """armature_scale: Bullet's own mass matrix (calculateMassMatrix) gains the spec's armature on
+    each ankle-roll diagonal entry (the last joint of a leg: only its own link carries it)."""
+    plain = _pybullet_backend({"name": "pybullet"})
+    servo = _pybullet_backend(SERVO)
+    try:
+        matrices = []
+        for b in (plain, servo):
+            b.reset(EMPTY, np.random.default_rng(0))
+            sim = b.sim
+            q = [s[0] for s in pybullet.getJointStates(sim.robot_id, range(pybullet.getNumJoints(sim.robot_id, physicsClientId=sim.client)),
+                                                       physicsClientId=sim.client)]
+            matrices.append((np.array(pybullet.calculateMassMatrix(sim.robot_id, q, physicsClientId=sim.client)), sim))
+        (m_plain, sim_plain), (m_servo, _) = matrices
+        for name in ("LAnkleRoll", "RAnkleRoll"):
+            i = 6 + sim_plain.joint_index[name]  # 6 base DoF first
+            assert m_servo[i, i] - m_plain[i, i] == pytest.approx(plain.robot.joint(name).servo.armature, rel=1e-6)
+    finally:
+        plain.close()
+        servo.close()

@@ -48,6 +48,7 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 import pybullet as p
+from scipy.spatial.transform import Rotation
 
 from footsim.backends.base import RenderOverlay
 from footsim.backends.physics3d import Physics3DBackend, PhysicsSim
@@ -83,6 +84,11 @@ def _rpy(rotation: np.ndarray) -> tuple[float, float, float]:
     """URDF roll-pitch-yaw of a rotation matrix (R = Rz(y) Ry(p) Rx(r))."""
     pitch = math.asin(max(-1.0, min(1.0, -float(rotation[2, 0]))))
     return (math.atan2(rotation[2, 1], rotation[2, 2]), pitch, math.atan2(rotation[1, 0], rotation[0, 0]))
+
+
+def _quat_xyzw(rotation: np.ndarray) -> tuple[float, float, float, float]:
+    """Bullet's (x, y, z, w) quaternion of a rotation matrix (scipy's convention is the same)."""
+    return tuple(float(v) for v in Rotation.from_matrix(rotation).as_quat())
 
 
 def model_urdf(spec: RobotSpec, rigid_upper_body: bool) -> str:
@@ -152,6 +158,12 @@ class PybulletSim(PhysicsSim):
         position_gain_scale: float = 1.0,
         velocity_gain: float = 1.0,
         solver_iterations: int = 50,
+        motor: str = "position",
+        servo_kp_scale: float = 1.0,
+        servo_damping_scale: float = 1.0,
+        servo_kv: float = 0.0,
+        armature_scale: float = 0.0,
+        control_dt: float | None = None,
         obstacle_height: float = 1.0,
         self_collision: bool = True,
         rigid_upper_body: bool = True,
@@ -167,6 +179,21 @@ class PybulletSim(PhysicsSim):
             raise ValueError(f"backend.position_gain_scale must be positive, got {position_gain_scale!r}")
         if int(solver_iterations) < 1:
             raise ValueError(f"backend.solver_iterations must be >= 1, got {solver_iterations!r}")
+        if motor not in ("position", "servo"):
+            raise ValueError(f"backend.motor must be 'position' or 'servo', got {motor!r}")
+        for key, value in {"servo_damping_scale": servo_damping_scale, "servo_kv": servo_kv,
+                           "armature_scale": armature_scale}.items():
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"backend.{key} must be a non-negative number, got {value!r}")
+        if not (math.isfinite(servo_kp_scale) and servo_kp_scale > 0):
+            raise ValueError(f"backend.servo_kp_scale must be positive, got {servo_kp_scale!r}")
+        if motor == "servo" and armature_scale == 0:
+            raise ValueError("backend.motor=servo needs backend.armature_scale > 0: explicit servo torques on the "
+                             "bare link inertias (down to 2e-5 kg m^2) diverge at any usable timestep")
+        self.motor = motor
+        self.servo_kp_scale, self.servo_damping_scale = float(servo_kp_scale), float(servo_damping_scale)
+        self.servo_kv, self.armature_scale = float(servo_kv), float(armature_scale)
+        self.control_dt = None if control_dt is None else float(control_dt)
         self.lateral_friction = float(lateral_friction)
         self.spinning_friction = float(spinning_friction)
         self.rolling_friction = float(rolling_friction)
@@ -198,7 +225,7 @@ class PybulletSim(PhysicsSim):
     def build(self, robot: RobotSpec, physics_dt: float) -> None:
         self.spec, self.physics_dt = robot, float(physics_dt)
         text = model_urdf(robot, self.rigid_upper_body)
-        self._key = (text, self.self_collision)
+        self._key = (text, self.self_collision, self.armature_scale)
         # Motor gains per joint (see the module docstring for the mapping).
         self._gain = {j.name: min(1.0, self.position_gain_scale * j.servo.kp * self.physics_dt / max(j.servo.damping, 1e-6))
                       for j in robot.joints}
@@ -260,6 +287,8 @@ class PybulletSim(PhysicsSim):
         # light foot links at 1/240 s (D·dt/I ≫ 2); the servo's damping is in the motor mapping.
         for index in self.joint_index.values():
             p.changeDynamics(self.robot_id, index, jointDamping=0.0, physicsClientId=c)
+        if self.armature_scale > 0:
+            self._add_armature()
         # Base pose: Bullet reports the base's inertial frame; keep the link-frame offset.
         dyn = p.getDynamicsInfo(self.robot_id, -1, physicsClientId=c)
         self._com_pos = np.array(dyn[3])
@@ -278,6 +307,23 @@ class PybulletSim(PhysicsSim):
             for link in [-1, *range(p.getNumJoints(self.robot_id, physicsClientId=c))]
             for info in [p.getDynamicsInfo(self.robot_id, link, physicsClientId=c)]
         }
+
+    def _add_armature(self) -> None:
+        """Fold each joint's armature (the servo's reflected rotor inertia, spec × ``armature_scale``)
+        into its child link as a thin rotor disk on the joint axis: inertia ``a`` about the axis,
+        ``a/2`` about the two others (a valid inertia: Bullet's inverse dynamics rejects one that
+        breaks the triangle inequality).  Bullet's multibody has no armature; this adds ``a`` to the
+        joint's own diagonal of the mass matrix, as MuJoCo's armature does, but also couples it
+        into the upstream joints (the rotor rides on the link)."""
+        c, body = self.client, self.robot_id
+        for name, link in self.joint_index.items():
+            armature = self.armature_scale * self.spec.joint(name).servo.armature
+            info = p.getJointInfo(body, link, physicsClientId=c)
+            dynamics = p.getDynamicsInfo(body, link, physicsClientId=c)
+            inertial = np.array(p.getMatrixFromQuaternion(dynamics[4])).reshape(3, 3)
+            axis = inertial.T @ np.asarray(info[13], dtype=float)  # joint axis in the principal frame
+            inertia = np.asarray(dynamics[2], dtype=float) + 0.5 * armature * (1.0 + axis * axis)
+            p.changeDynamics(body, link, localInertiaDiagonal=inertia.tolist(), physicsClientId=c)
 
     def _configure(self) -> None:
         """Settings of this backend's config on a (new or reused) world."""
@@ -299,6 +345,26 @@ class PybulletSim(PhysicsSim):
         self._scales = {"kp": 1.0, "damping": 1.0, "torque": 1.0}
         self.leg_vgains = [self.velocity_gain] * len(LEG_JOINT_NAMES)
         self.other_names = [n for n in self.joint_names if n not in LEG_JOINT_NAMES]
+        if self.motor == "servo":
+            # Torque mode: Bullet's leg motors become the joints' dry friction (a velocity motor to
+            # 0 with the servo's frictionloss as its force, as MuJoCo's frictionloss); the servo law
+            # is applied as a torque every tick (_servo_torques).
+            frictionloss = [self.spec.joint(n).servo.frictionloss for n in LEG_JOINT_NAMES]
+            p.setJointMotorControlArray(self.robot_id, self.leg_indices, p.VELOCITY_CONTROL,
+                                        targetVelocities=[0.0] * len(frictionloss), forces=frictionloss,
+                                        physicsClientId=c)
+            self._servo_gains()
+            self._ctrl = [0.0] * len(LEG_JOINT_NAMES)
+            self._previous = [0.0] * len(LEG_JOINT_NAMES)
+
+    def _servo_gains(self) -> None:
+        """Per leg joint (kp, kv, damping, effort) of the servo law, with the randomization scales."""
+        kp_scale = self.servo_kp_scale * self._scales["kp"]
+        self._servo = [(kp_scale * j.servo.kp, self.servo_kv, self.servo_damping_scale * self._scales["damping"] * j.servo.damping,
+                        j.effort * self._scales["torque"])
+                       for j in map(self.spec.joint, LEG_JOINT_NAMES)]
+        dt = self.control_dt if self.control_dt is not None else self.physics_dt
+        self._feed = [kv / kp / dt for kp, kv, _, _ in self._servo]  # ctrl = q_t + kv/kp · q̇_t
 
     def set_obstacles(self, scene: Scene) -> None:
         """Place the scene's cylinders and ball.
@@ -372,8 +438,10 @@ class PybulletSim(PhysicsSim):
     # -- robot ----------------------------------------------------------------------------
     def reset_robot(self, base_position: np.ndarray, joint_positions: dict[str, float]) -> None:
         c, body = self.client, self.robot_id
-        com = np.asarray(base_position, dtype=float) + self._com_pos  # upright: link frame = world axes
-        p.resetBasePositionAndOrientation(body, com.tolist(), self._com_orn, physicsClientId=c)
+        position, rotation = self._levelled_base(np.asarray(base_position, dtype=float), joint_positions)
+        com = position + rotation @ self._com_pos
+        orientation = _quat_xyzw(rotation @ self._com_rot)  # Bullet's base frame is the inertial frame
+        p.resetBasePositionAndOrientation(body, com.tolist(), orientation, physicsClientId=c)
         p.resetBaseVelocity(body, [0, 0, 0], [0, 0, 0], physicsClientId=c)
         # Re-adding the links to the broadphase drops their contact manifolds, so no warm-start
         # impulses from the previous episode leak into this one (determinism).
@@ -382,6 +450,9 @@ class PybulletSim(PhysicsSim):
         for name in self.joint_names:
             p.resetJointState(body, self.joint_index[name], float(joint_positions.get(name, 0.0)), 0.0,
                               physicsClientId=c)
+        if self.motor == "servo":  # target velocities restart from rest at these angles
+            self._previous = [float(joint_positions.get(n, 0.0)) for n in LEG_JOINT_NAMES]
+            self._ctrl = list(self._previous)
         others = [self.joint_index[n] for n in self.other_names]
         if others:
             p.setJointMotorControlArray(
@@ -391,14 +462,53 @@ class PybulletSim(PhysicsSim):
                 positionGains=[self._motor_gain(n) for n in self.other_names],
                 velocityGains=[self.velocity_gain] * len(others), physicsClientId=c)
 
+    def _levelled_base(self, base_position: np.ndarray, joint_positions: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
+        """Base position and rotation with the soles flat on the floor, as MuJoCo and dm-control
+        start: the walk's standing pose pitches the trunk (``trunk_pitch``), so an upright base
+        would put the robot on its heels, where Bullet's rolling friction holds it (measured: one
+        contact point per foot, feet 0.077 rad toe-up, trunk upright instead of leaning).  The
+        left sole's roll and pitch in the base frame (the spec's kinematics) are undone, its yaw
+        kept, and the robot lowered so the lower sole touches the floor."""
+        soles = [self.spec.sole_transform(side, joint_positions) for side in ("left", "right")]
+        sole = soles[0][:3, :3]
+        yaw = math.atan2(sole[1, 0], sole[0, 0])
+        level = np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0], [0.0, 0.0, 1.0]])
+        rotation = level @ sole.T
+        lowest = min(float((rotation @ t[:3, 3])[2]) for t in soles)
+        return np.array([base_position[0], base_position[1], -lowest]), rotation
+
     def set_leg_targets(self, targets: np.ndarray) -> None:
+        if self.motor == "servo":
+            # MuJoCo's position actuator with kv (mujoco_backend.ServoFeedForward): the target
+            # velocity (backward difference of targets) is fed forward through ctrl.
+            new = targets.tolist()
+            self._ctrl = [t + f * (t - old) for t, old, f in zip(new, self._previous, self._feed)]
+            self._previous = new
+            return
         p.setJointMotorControlArray(self.robot_id, self.leg_indices, p.POSITION_CONTROL,
                                     targetPositions=targets.tolist(), forces=self.leg_forces,
                                     positionGains=self.leg_gains, velocityGains=self.leg_vgains,
                                     physicsClientId=self.client)
 
+    def _servo_torques(self) -> list[float]:
+        """MuJoCo's actuator law: clip(kp (ctrl − q) − kv q̇, ±effort) − damping q̇ per leg joint."""
+        states = p.getJointStates(self.robot_id, self.leg_indices, physicsClientId=self.client)
+        torques = []
+        for (q, qd, _, _), ctrl, (kp, kv, damping, effort) in zip(states, self._ctrl, self._servo):
+            force = kp * (ctrl - q) - kv * qd
+            torques.append(min(effort, max(-effort, force)) - damping * qd)
+        return torques
+
     def advance(self, n_steps: int) -> None:
         c = self.client
+        if self.motor == "servo":
+            body, legs = self.robot_id, self.leg_indices
+            for _ in range(n_steps):
+                if self._wrench:
+                    self._apply_wrench()
+                p.setJointMotorControlArray(body, legs, p.TORQUE_CONTROL, forces=self._servo_torques(), physicsClientId=c)
+                p.stepSimulation(physicsClientId=c)
+            return
         if self._wrench:
             for _ in range(n_steps):
                 self._apply_wrench()
@@ -459,6 +569,8 @@ class PybulletSim(PhysicsSim):
                         "torque": scale("torque_limit_scale")}
         self.leg_gains = [self._motor_gain(n) for n in LEG_JOINT_NAMES]
         self.leg_forces = [self.spec.joint(n).effort * self._scales["torque"] for n in LEG_JOINT_NAMES]
+        if self.motor == "servo":
+            self._servo_gains()
         self._com_offset = np.array([values.get("torso_com_offset_x", 0.0), values.get("torso_com_offset_y", 0.0), 0.0])
         slope = float(values.get("terrain_slope", 0.0))
         if not (math.isfinite(slope) and abs(slope) < math.pi / 4):
