@@ -112,3 +112,82 @@ def quick_status(root_q, qpos, qvel, warnings, warning_ids, out_of_bounds, tilt)
         return False
     tilt[0], tilt[1] = _fused_roll_pitch(root_q[3:7])
     return True
+
+
+@_compiled
+def bullet_base_ok(position, quat, linear, angular, com_pos, com_rot, out_of_bounds, max_speed, tilt):
+    """PyBullet's periodic check while all is well (``PybulletSim.status_ok``), in one call on the
+    tuples Bullet returns for the base: its inertial frame's ``position`` and ``quat`` (x, y, z, w),
+    ``linear`` and ``angular`` velocity.  ``com_pos`` / ``com_rot``: the inertial frame in the
+    base link frame.  True, with the link frame's fused (roll, pitch) written into ``tilt``, when
+    every value is finite, the speeds are within ``max_speed`` (angular 6×), the link origin is
+    within ``out_of_bounds`` and the base is right side up.  The same quantities as
+    ``sim_error`` + ``base_pose`` + ``fused_roll_pitch`` (the rotation as Bullet's
+    ``getMatrixFromQuaternion`` forms it, times ``com_rot``ᵀ)."""
+    for i in range(3):
+        if not (math.isfinite(position[i]) and math.isfinite(linear[i]) and math.isfinite(angular[i])):
+            return False
+    for i in range(4):
+        if not math.isfinite(quat[i]):
+            return False
+    if math.hypot(linear[0], math.hypot(linear[1], linear[2])) > max_speed:
+        return False
+    if math.hypot(angular[0], math.hypot(angular[1], angular[2])) > 6.0 * max_speed:
+        return False
+    x, y, z, w = quat[0], quat[1], quat[2], quat[3]
+    s = 2.0 / (x * x + y * y + z * z + w * w)
+    xs, ys, zs = x * s, y * s, z * s
+    wx, wy, wz = w * xs, w * ys, w * zs
+    xx, xy, xz = x * xs, x * ys, x * zs
+    yy, yz, zz = y * ys, y * zs, z * zs
+    r = np.empty((3, 3))
+    r[0, 0], r[0, 1], r[0, 2] = 1.0 - (yy + zz), xy - wz, xz + wy
+    r[1, 0], r[1, 1], r[1, 2] = xy + wz, 1.0 - (xx + zz), yz - wx
+    r[2, 0], r[2, 1], r[2, 2] = xz - wy, yz + wx, 1.0 - (xx + yy)
+    link = np.empty((3, 3))  # r @ com_rot.T
+    for i in range(3):
+        for j in range(3):
+            link[i, j] = r[i, 0] * com_rot[j, 0] + r[i, 1] * com_rot[j, 1] + r[i, 2] * com_rot[j, 2]
+    for i in range(3):
+        origin = position[i] - (link[i, 0] * com_pos[0] + link[i, 1] * com_pos[1] + link[i, 2] * com_pos[2])
+        if abs(origin) > out_of_bounds:
+            return False
+    if link[2, 2] < 0.0:
+        return False
+    tilt[0] = math.asin(max(-1.0, min(1.0, link[2, 1])))
+    tilt[1] = math.asin(max(-1.0, min(1.0, -link[2, 0])))
+    return True
+
+
+def bullet_control_state(targets, trunk, gains, com_rows):
+    """The inputs of :func:`bullet_control_tick` packed in one (n + 4, 14) array: one array
+    argument is cheaper to pass to a compiled function than six (Bullet leaves the caches cold
+    between ticks, so each argument's conversion costs µs).  Rows 0..n-1: tick k's 12 joint
+    targets, then its planned trunk roll and pitch (``trunk[k, 3:5]``); row n, n+1: the
+    stabilizer's roll and pitch gains; rows n+2, n+3: ``com_rows`` (the inertial frame's
+    rotation rows 0 and 1 in the base link frame, in columns 0-2)."""
+    n = targets.shape[0]
+    state = np.zeros((n + 4, 14))
+    state[:n, :12] = targets
+    state[:n, 12:14] = trunk[:, 3:5]
+    state[n:n + 2, :12] = gains
+    state[n + 2:n + 4, :3] = com_rows
+    return state
+
+
+@_compiled
+def bullet_control_tick(state, k, quat, out):
+    """PyBullet's stabilized control tick (``PybulletSim.stabilized_control``) in one compiled
+    call: tick ``k``'s joint targets, corrected for the tilt of Bullet's base quaternion ``quat``
+    (x, y, z, w), written into ``out`` (12,).  The same float operations in the same order as
+    ``PybulletSim.base_tilt`` then :func:`stabilized_targets`; ``state`` from
+    :func:`bullet_control_state`."""
+    n = state.shape[0] - 4
+    x, y, z, w = quat[0], quat[1], quat[2], quat[3]
+    r0, r1, r2 = 2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)
+    s_pitch = -(r0 * state[n + 2, 0] + r1 * state[n + 2, 1] + r2 * state[n + 2, 2])
+    s_roll = r0 * state[n + 3, 0] + r1 * state[n + 3, 1] + r2 * state[n + 3, 2]
+    roll_error = math.asin(-1.0 if s_roll < -1.0 else 1.0 if s_roll > 1.0 else s_roll) - state[k, 12]
+    pitch_error = math.asin(-1.0 if s_pitch < -1.0 else 1.0 if s_pitch > 1.0 else s_pitch) - state[k, 13]
+    for j in range(12):
+        out[j] = state[k, j] + (state[n, j] * roll_error + state[n + 1, j] * pitch_error)

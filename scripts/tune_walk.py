@@ -171,6 +171,8 @@ def main(argv: list[str]) -> None:
             keys = (("position_gain_scale", "velocity_gain", "spinning_friction", "solver_iterations") if name == "pybullet" else
                     ("physics_dt", "torsional_friction", "servo_kp_scale", "servo_damping_scale", "servo_kv"))
             current.update({k: backend_cfg[k] for k in keys})
+            if name == "pybullet" and current["solver_iterations"] not in iterations:
+                del current["solver_iterations"]  # not among this study's choices: sampled
             study.enqueue_trial(current, skip_if_exists=True)
         if "enqueue" in args:  # a JSON file of parameters to try early (e.g. a previous study's best)
             import json

@@ -1,5 +1,6 @@
 """PyBullet backend: env checkers, walking, determinism, name mapping, faults, contacts, memory."""
 
+import math
 import os
 
 import gymnasium as gym
@@ -400,10 +401,15 @@ def test_servo_motor_applies_mujocos_actuator_law():
 
 
 def test_armature_adds_to_the_joints_mass_matrix_diagonal():
-    """armature_scale: Bullet's own mass matrix (calculateMassMatrix) gains the spec's armature on
-    each ankle-roll diagonal entry (the last joint of a leg: only its own link carries it)."""
-    plain = _pybullet_backend({"name": "pybullet"})
-    servo = _pybullet_backend(SERVO)
+    """armature_scale: Bullet's own mass matrix (calculateMassMatrix) gains the spec's armature ×
+    the scale on each ankle-roll diagonal entry (the last joint of a leg: only its own link
+    carries it)."""
+    from footsim import config as fconf
+
+    plain = _pybullet_backend({"name": "pybullet", "armature_scale": 0.0})
+    servo = _pybullet_backend({"name": "pybullet"})  # the preset's armature
+    scale = fconf.load_preset("backend", {"name": "pybullet"})["armature_scale"]
+    assert scale > 0
     try:
         matrices = []
         for b in (plain, servo):
@@ -415,7 +421,100 @@ def test_armature_adds_to_the_joints_mass_matrix_diagonal():
         (m_plain, sim_plain), (m_servo, _) = matrices
         for name in ("LAnkleRoll", "RAnkleRoll"):
             i = 6 + sim_plain.joint_index[name]  # 6 base DoF first
-            assert m_servo[i, i] - m_plain[i, i] == pytest.approx(plain.robot.joint(name).servo.armature, rel=1e-6)
+            assert m_servo[i, i] - m_plain[i, i] == pytest.approx(scale * plain.robot.joint(name).servo.armature, rel=1e-6)
     finally:
         plain.close()
         servo.close()
+
+
+def test_compiled_control_tick_is_bit_identical_to_the_verbs():
+    """``kernels3d.bullet_control_tick`` against ``base_tilt`` → ``stabilized_targets`` on random
+    quaternions and inertial-frame rotations, and end to end: 4 double steps with the compiled
+    tick and with the verbs leave the same joint and base state, bit for bit."""
+    from footsim.backends.physics3d import TrunkStabilizer
+    from footsim.kernels3d import bullet_control_state, bullet_control_tick, stabilized_targets
+
+    rng = np.random.default_rng(4)
+    stabilizer = TrunkStabilizer(hip_roll=0.5, hip_pitch=-0.2, ankle_roll=0.1, ankle_pitch=-0.1)
+    b = make_backend("pybullet")
+    try:
+        sim = b.sim
+        for case in range(20):
+            targets, trunk = rng.normal(size=(15, 12)), rng.normal(scale=0.1, size=(15, 6))
+            rotation, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+            rotation *= np.sign(np.linalg.det(rotation))
+            rows = (tuple(rotation[0].tolist()), tuple(rotation[1].tolist())) if case % 2 else sim._com_rows
+            state, out = bullet_control_state(targets, trunk, stabilizer.gains, np.array(rows)), np.empty(12)
+            for k in range(15):
+                quat = rng.normal(size=4)
+                quat = tuple((quat / np.linalg.norm(quat)).tolist())
+                saved = sim._com_rows
+                sim._com_rows = rows
+                try:
+                    position = pybullet.getBasePositionAndOrientation(sim.robot_id, physicsClientId=sim.client)[0]
+                    pybullet.resetBasePositionAndOrientation(sim.robot_id, position, quat, physicsClientId=sim.client)
+                    quat = pybullet.getBasePositionAndOrientation(sim.robot_id, physicsClientId=sim.client)[1]
+                    expected = stabilized_targets(targets, trunk, stabilizer.gains, k, *sim.base_tilt())
+                finally:
+                    sim._com_rows = saved
+                bullet_control_tick(state, k, quat, out)
+                assert out.tobytes() == expected.tobytes()
+    finally:
+        b.close()
+
+    def walk(compiled):
+        backend = make_backend("pybullet")
+        try:
+            backend.compiled_ticks = compiled
+            backend.reset(EMPTY, np.random.default_rng(3))
+            if compiled:  # while walking, the compiled tick must not fall back to the verbs
+                backend.sim.set_leg_targets = backend.sim.base_tilt = _refuse
+            actions = np.random.default_rng(7).uniform(-0.6, 0.6, size=(4, 6))
+            results = [backend.execute(DoubleStep.from_action(a, backend.robot.step_limits)) for a in actions]
+            sim = backend.sim
+            joints = pybullet.getJointStates(sim.robot_id, sim.leg_indices, physicsClientId=sim.client)
+            base = pybullet.getBasePositionAndOrientation(sim.robot_id, physicsClientId=sim.client)
+            return [s[:2] for s in joints], base, [(r.pose, r.tilt, r.fell) for r in results]
+        finally:
+            backend.close()
+
+    assert walk(True) == walk(False)
+
+
+def _refuse(*_):
+    raise AssertionError("the compiled tick fell back to set_leg_targets / base_tilt")
+
+
+def test_quick_status_matches_the_full_check():
+    """``PybulletSim.status_ok`` (one compiled call) against the driver's full check
+    (``sim_error`` + ``base_pose`` + ``fused_roll_pitch``): the same tilt while walking, and the
+    same verdict for a NaN state, an exploding velocity, a base out of bounds and upside down."""
+    b = make_backend("pybullet")
+    try:
+        sim = b.sim
+        b.reset(EMPTY, np.random.default_rng(0))
+        tilt = np.zeros(2)
+        for action in np.random.default_rng(1).uniform(-1, 1, size=(3, 6)):
+            b.execute(DoubleStep.from_action(action, b.robot.step_limits))
+            assert sim.status_ok(b.out_of_bounds, tilt)
+            error, fell = b._full_status()
+            assert error is None and not fell
+            np.testing.assert_allclose(tilt, b._tilt, rtol=0, atol=1e-12)
+        body, c = sim.robot_id, sim.client
+        position, orientation = pybullet.getBasePositionAndOrientation(body, physicsClientId=c)
+        bad_states = [
+            ([position[0] + b.out_of_bounds + 1.0, position[1], position[2]], orientation, [0, 0, 0]),
+            (position, pybullet.getQuaternionFromEuler([math.pi, 0.0, 0.0]), [0, 0, 0]),
+            (position, orientation, [2.0 * sim.max_base_speed, 0.0, 0.0]),
+        ]
+        for bad_position, bad_orientation, velocity in bad_states:
+            pybullet.resetBasePositionAndOrientation(body, bad_position, bad_orientation, physicsClientId=c)
+            pybullet.resetBaseVelocity(body, velocity, [0, 0, 0], physicsClientId=c)
+            assert not sim.status_ok(b.out_of_bounds, tilt)
+            error, fell = b._full_status()
+            assert error is not None or fell
+        pybullet.resetBasePositionAndOrientation(body, position, orientation, physicsClientId=c)
+        pybullet.resetBaseVelocity(body, [0, 0, 0], [0, 0, 0], physicsClientId=c)
+        assert sim.status_ok(b.out_of_bounds, tilt)
+    finally:
+        b.close()

@@ -13,6 +13,7 @@ import math
 import inspect
 from abc import ABC, abstractmethod
 from collections import deque
+from collections.abc import Callable
 from functools import partial
 
 import numpy as np
@@ -145,6 +146,22 @@ class PhysicsSim(ABC):
         one compiled call (``footsim.kernels3d.quick_status``) while all is well.  None (the
         default, or while the sim holds an error of its own): the driver calls the verbs."""
         return None
+
+    def stabilized_control(self, targets: np.ndarray, trunk: np.ndarray, gains: np.ndarray) -> Callable[[int], None] | None:
+        """For a sim that can do a stabilized control tick cheaper than the verbs: ``tick(k)``
+        commanding ``targets[k]`` corrected by the stabilizer ``gains`` for the measured tilt
+        against ``trunk[k]`` (the result of ``base_tilt`` → ``TrunkStabilizer.correct`` →
+        ``set_leg_targets``).  None (the default): the driver calls the verbs."""
+        return None
+
+    def status_ok(self, out_of_bounds: float, tilt: np.ndarray) -> bool:
+        """The driver's periodic check while all is well, in one cheap call: True, with the base's
+        fused (roll, pitch) written into ``tilt``, when the state is sound (finite, within
+        ``out_of_bounds``, right side up, no error of the sim's own); False when the driver should
+        run its full check, which names the problem.  Default: ``kernels3d.quick_status`` on
+        ``status_arrays`` (False without them)."""
+        arrays = self.status_arrays()
+        return arrays is not None and quick_status(*arrays, out_of_bounds, tilt)
 
     @abstractmethod
     def advance(self, n_steps: int) -> None:
@@ -389,9 +406,13 @@ class Physics3DBackend(Backend):
                 tick(k)
                 self._push_tick()
             return tick_and_push
-        set_targets = self._send_targets if (self._latency or self._push_ticks is not None) else self.sim.set_leg_targets
+        plain = not (self._latency or self._push_ticks is not None)
+        set_targets = self.sim.set_leg_targets if plain else self._send_targets
         if gains is None:
             return lambda k: set_targets(targets[k])
+        tick = self.sim.stabilized_control(targets, trunk, gains) if plain and self.compiled_ticks else None
+        if tick is not None:
+            return tick
         base_tilt = self.sim.base_tilt  # TrunkStabilizer.correct, compiled: stabilized_targets
         return lambda k: set_targets(stabilized_targets(targets, trunk, gains, k, *base_tilt()))
 
@@ -465,8 +486,7 @@ class Physics3DBackend(Backend):
         """``(sim error or None, fallen)``; also records the fused roll/pitch.  While all is well
         one compiled call does it (the same values as :meth:`_full_status`, ~1 µs instead of
         ~20 µs, 12 times per double step); otherwise the full check names the problem."""
-        arrays = self.sim.status_arrays()
-        if arrays is not None and quick_status(*arrays, self.out_of_bounds, self._tilt_buffer):
+        if self.sim.status_ok(self.out_of_bounds, self._tilt_buffer):
             return None, self._record_tilt(float(self._tilt_buffer[0]), float(self._tilt_buffer[1]))
         return self._full_status()
 

@@ -20,10 +20,17 @@ damping ``kd`` whose inertia is small against ``kd`` (the overdamped limit) sett
 
     positionGain = position_gain_scale · kp · dt / damping
 
-(Wolfgang legs: kp 42.2, damping 2.17 → time constant kd/kp = 51 ms; dt 1/240 → 0.081 · scale,
-close to Bullet's default 0.1).  The spec's armature has no URDF field and is not used.  The
-URDF's joint damping is applied by Bullet as passive damping on top; the joint's default
-velocity motor (the URDF friction) is replaced by the position motor.
+(Wolfgang legs: kp 42.2, damping 2.17 → time constant kd/kp = 51 ms; dt 0.01 → 0.19 · scale:
+0.73 at the preset's 3.75; Bullet caps it at 1).  Bullet's own joint damping is off
+(``_build_world``); the joint's default velocity motor (the URDF friction) is replaced by the
+position motor.
+
+Armature.  URDF cannot express the servos' reflected rotor inertia, and without it the leg links
+are tiny (2e-5 to 6e-4 kg m²) under a 3.5 kg torso: Bullet's sequential-impulse solver then needs
+~60 iterations a tick before motor and friction impulses agree (fewer: the stance foot slips and
+the robot falls).  ``armature_scale`` folds the spec's armature, scaled, into the leg links as
+rotor disks (``_add_armature``); at 0.1 the walk needs 10 iterations at 100 Hz instead of 60 at
+240 Hz.  ``motor=servo`` instead drives the joints in torque mode with MuJoCo's servo law.
 
 Contacts.  Lateral / spinning / rolling friction of the floor and the feet as the Bit-Bots'
 PyBullet setup (FACTS: 1.0 / 0.1 / 0.1).  Obstacles are static cylinders, the ball a static
@@ -52,6 +59,7 @@ from scipy.spatial.transform import Rotation
 
 from footsim.backends.base import RenderOverlay
 from footsim.backends.physics3d import Physics3DBackend, PhysicsSim
+from footsim.kernels3d import bullet_base_ok, bullet_control_state, bullet_control_tick
 from footsim.robots.spec import RobotSpec
 from footsim.robots.urdf import build_urdf
 from footsim.tasks.scenes import Scene
@@ -284,7 +292,7 @@ class PybulletSim(PhysicsSim):
             p.setCollisionFilterGroupMask(self.robot_id, link, group, mask, physicsClientId=c)
             self._filters.append((link, group, mask))
         # No explicit joint damping: Bullet applies it as an explicit torque, which diverges on the
-        # light foot links at 1/240 s (D·dt/I ≫ 2); the servo's damping is in the motor mapping.
+        # bare foot links (D·dt/I ≫ 2 at 1/240 s); the servo's damping is in the motor mapping.
         for index in self.joint_index.values():
             p.changeDynamics(self.robot_id, index, jointDamping=0.0, physicsClientId=c)
         if self.armature_scale > 0:
@@ -490,6 +498,24 @@ class PybulletSim(PhysicsSim):
                                     positionGains=self.leg_gains, velocityGains=self.leg_vgains,
                                     physicsClientId=self.client)
 
+    def stabilized_control(self, targets: np.ndarray, trunk: np.ndarray, gains: np.ndarray):
+        """The stabilized control tick as one quaternion read, one compiled call
+        (``kernels3d.bullet_control_tick``: ``base_tilt`` + the correction, the same float
+        operations) and the motor command, with less Python around them than the verbs.
+        Position motors only (servo mode: the verbs)."""
+        if self.motor != "position":
+            return None
+        read, command, mode = p.getBasePositionAndOrientation, p.setJointMotorControlArray, p.POSITION_CONTROL
+        body, c, legs = self.robot_id, self.client, self.leg_indices
+        forces, position_gains, velocity_gains = self.leg_forces, self.leg_gains, self.leg_vgains
+        state, out = bullet_control_state(targets, trunk, gains, np.array(self._com_rows)), np.empty(len(legs))
+
+        def tick(k: int) -> None:
+            bullet_control_tick(state, k, read(body, physicsClientId=c)[1], out)
+            command(body, legs, mode, targetPositions=out.tolist(), forces=forces, positionGains=position_gains,
+                    velocityGains=velocity_gains, physicsClientId=c)
+        return tick
+
     def _servo_torques(self) -> list[float]:
         """MuJoCo's actuator law: clip(kp (ctrl − q) − kv q̇, ±effort) − damping q̇ per leg joint."""
         states = p.getJointStates(self.robot_id, self.leg_indices, physicsClientId=self.client)
@@ -635,6 +661,15 @@ class PybulletSim(PhysicsSim):
             return "exploding base velocity"
         return None
 
+    def status_ok(self, out_of_bounds: float, tilt: np.ndarray) -> bool:
+        """The driver's periodic check in two Bullet reads and one compiled call (the full check,
+        ``sim_error`` + ``base_pose``, is ~40-75 µs of small numpy; 12 times a double step)."""
+        c, body = self.client, self.robot_id
+        position, orientation = p.getBasePositionAndOrientation(body, physicsClientId=c)
+        linear, angular = p.getBaseVelocity(body, physicsClientId=c)
+        return bullet_base_ok(position, orientation, linear, angular, self._com_pos, self._com_rot, out_of_bounds,
+                              self.max_base_speed, tilt)
+
     def _healthy(self) -> bool:
         """No sim error and the base within 50 m of the origin (else the world is rebuilt)."""
         if self.sim_error() is not None:
@@ -703,5 +738,5 @@ class PybulletBackend(Physics3DBackend):
     name = "pybullet"
 
     sim_class = PybulletSim
-    default_control_dt = 1.0 / 240.0
-    default_physics_dt = 1.0 / 240.0
+    default_control_dt = 0.01
+    default_physics_dt = 0.01
