@@ -34,6 +34,13 @@ def _fused_roll_pitch(quat):
 
 
 @_compiled
+def _corrected(target, roll_gain, pitch_gain, roll_error, pitch_error):
+    """One joint's target plus the stabilizer's correction, in ``TrunkStabilizer.correct``'s
+    order of operations (every compiled control path uses it, so they stay bit-identical)."""
+    return target + (roll_gain * roll_error + pitch_gain * pitch_error)
+
+
+@_compiled
 def control_tick(targets, trunk, quat, gains, feed_forward, ctrl, leg_ids, k):
     """Write control tick ``k``'s leg commands into ``ctrl``.
 
@@ -52,7 +59,7 @@ def control_tick(targets, trunk, quat, gains, feed_forward, ctrl, leg_ids, k):
     for j in range(targets.shape[1]):
         t = targets[k, j]
         if gains is not None:
-            t = t + (gains[0, j] * roll_error + gains[1, j] * pitch_error)
+            t = _corrected(t, gains[0, j], gains[1, j], roll_error, pitch_error)
         if feed_forward is not None:
             out = t + feed_forward[0, j] * (t - feed_forward[1, j])
             feed_forward[1, j] = t
@@ -70,7 +77,7 @@ def stabilized_targets(targets, trunk, gains, k, roll, pitch):
     roll_error, pitch_error = roll - trunk[k, 3], pitch - trunk[k, 4]
     out = np.empty(targets.shape[1])
     for j in range(targets.shape[1]):
-        out[j] = targets[k, j] + (gains[0, j] * roll_error + gains[1, j] * pitch_error)
+        out[j] = _corrected(targets[k, j], gains[0, j], gains[1, j], roll_error, pitch_error)
     return out
 
 
@@ -190,4 +197,4 @@ def bullet_control_tick(state, k, quat, out):
     roll_error = math.asin(-1.0 if s_roll < -1.0 else 1.0 if s_roll > 1.0 else s_roll) - state[k, 12]
     pitch_error = math.asin(-1.0 if s_pitch < -1.0 else 1.0 if s_pitch > 1.0 else s_pitch) - state[k, 13]
     for j in range(12):
-        out[j] = state[k, j] + (state[n, j] * roll_error + state[n + 1, j] * pitch_error)
+        out[j] = _corrected(state[k, j], state[n, j], state[n + 1, j], roll_error, pitch_error)
