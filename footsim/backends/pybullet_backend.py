@@ -558,7 +558,8 @@ class PybulletSim(PhysicsSim):
 
         * friction: Bullet multiplies the two bodies' lateral friction, so the floor's and the
           feet's coefficients are scaled separately (contact: nominal · floor · foot).
-        * ``link_mass_scale``: mass and inertia diagonal of every link, one factor.
+        * ``link_mass_scale``: mass and inertia diagonal of every link, one factor (the inertia
+          includes the armature folded into the leg links, so it scales with them).
         * ``actuator_kp_scale`` / ``joint_damping_scale``: the servo's kp and kd in the motor
           mapping (positionGain ∝ kp / kd, capped at 1) — Bullet's joint damping is off (see
           ``_build_world``), the servo's damping lives in that mapping.
