@@ -23,7 +23,7 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
 
 from footsim.backends.base import RenderOverlay
 from footsim.backends.mujoco_randomization import MujocoRandomization
-from footsim.backends.physics3d import Physics3DBackend, PhysicsSim
+from footsim.backends.physics3d import Physics3DBackend, PhysicsSim, levelling_rotation
 from footsim.kernels3d import all_finite
 from footsim.robots.mjcf import CONTACT_FRICTION, FREE_JOINT, build_mjcf, import_mujoco
 from footsim.robots.spec import RobotSpec
@@ -135,10 +135,7 @@ def levelling_quat(sole_xmat: np.ndarray) -> np.ndarray:
 
     ``sole_xmat`` is the sole's world rotation computed with the base at identity orientation.
     """
-    sole = np.asarray(sole_xmat, dtype=float).reshape(3, 3)
-    yaw = math.atan2(sole[1, 0], sole[0, 0])
-    level = np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0], [0.0, 0.0, 1.0]])
-    base_rot = level @ sole.T  # base (identity now) → rotation that makes the sole level
+    base_rot = levelling_rotation(sole_xmat)  # base (identity now) → rotation that makes the sole level
     quat = np.zeros(4)
     mujoco.mju_mat2Quat(quat, base_rot.ravel())
     return quat

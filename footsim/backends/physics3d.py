@@ -52,6 +52,16 @@ def fused_roll_pitch(rotation: np.ndarray) -> tuple[float, float]:
     return roll, pitch
 
 
+def levelling_rotation(sole_rotation: np.ndarray) -> np.ndarray:
+    """Base rotation that makes a sole level, keeping its yaw.  ``sole_rotation`` is the sole's
+    rotation with the base at identity orientation (the walk's standing pose pitches the trunk,
+    so an upright base would stand the robot on its heels)."""
+    sole = np.asarray(sole_rotation, dtype=float).reshape(3, 3)
+    yaw = math.atan2(sole[1, 0], sole[0, 0])
+    level = np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0], [0.0, 0.0, 1.0]])
+    return level @ sole.T
+
+
 class TrunkStabilizer:
     """IMU feedback on the trunk orientation, in joint space (the Bit-Bots' walk has the same
     idea as PID controllers on the fused trunk pitch and roll).

@@ -58,7 +58,7 @@ import pybullet as p
 from scipy.spatial.transform import Rotation
 
 from footsim.backends.base import RenderOverlay
-from footsim.backends.physics3d import Physics3DBackend, PhysicsSim
+from footsim.backends.physics3d import Physics3DBackend, PhysicsSim, levelling_rotation
 from footsim.kernels3d import bullet_base_ok, bullet_control_state, bullet_control_tick
 from footsim.robots.spec import RobotSpec
 from footsim.robots.urdf import build_urdf
@@ -478,10 +478,7 @@ class PybulletSim(PhysicsSim):
         left sole's roll and pitch in the base frame (the spec's kinematics) are undone, its yaw
         kept, and the robot lowered so the lower sole touches the floor."""
         soles = [self.spec.sole_transform(side, joint_positions) for side in ("left", "right")]
-        sole = soles[0][:3, :3]
-        yaw = math.atan2(sole[1, 0], sole[0, 0])
-        level = np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0], [0.0, 0.0, 1.0]])
-        rotation = level @ sole.T
+        rotation = levelling_rotation(soles[0][:3, :3])
         lowest = min(float((rotation @ t[:3, 3])[2]) for t in soles)
         return np.array([base_position[0], base_position[1], -lowest]), rotation
 
