@@ -23,14 +23,20 @@ from footsim.kernels2d import _compiled
 
 
 @_compiled
+def _clamped_asin(s):
+    """asin of ``s`` clamped into [-1, 1] (rounding can push a rotation entry past 1); a NaN
+    passes through."""
+    return math.asin(-1.0 if s < -1.0 else 1.0 if s > 1.0 else s)
+
+
+@_compiled
 def _fused_roll_pitch(quat):
     """Fused (roll, pitch) of the unit quaternion ``quat`` (w, x, y, z): the rotation matrix's
     R[2,1] = 2 (yz + wx) and −R[2,0] = 2 (wy − xz), clamped as ``quat_fused_roll_pitch`` clamps
     them (a NaN passes through to asin)."""
     w, x, y, z = quat[0], quat[1], quat[2], quat[3]
     s_pitch, s_roll = 2.0 * (w * y - x * z), 2.0 * (y * z + w * x)
-    return (math.asin(-1.0 if s_roll < -1.0 else 1.0 if s_roll > 1.0 else s_roll),
-            math.asin(-1.0 if s_pitch < -1.0 else 1.0 if s_pitch > 1.0 else s_pitch))
+    return _clamped_asin(s_roll), _clamped_asin(s_pitch)
 
 
 @_compiled
@@ -122,6 +128,14 @@ def quick_status(root_q, qpos, qvel, warnings, warning_ids, out_of_bounds, tilt)
 
 
 @_compiled
+def _times_transpose(row, m):
+    """The 3-vector ``row`` times ``m``ᵀ (3×3), as three floats."""
+    return (row[0] * m[0, 0] + row[1] * m[0, 1] + row[2] * m[0, 2],
+            row[0] * m[1, 0] + row[1] * m[1, 1] + row[2] * m[1, 2],
+            row[0] * m[2, 0] + row[1] * m[2, 1] + row[2] * m[2, 2])
+
+
+@_compiled
 def bullet_base_ok(position, quat, linear, angular, com_pos, com_rot, out_of_bounds, max_speed, tilt):
     """PyBullet's periodic check while all is well (``PybulletSim.status_ok``), in one call on the
     tuples Bullet returns for the base: its inertial frame's ``position`` and ``quat`` (x, y, z, w),
@@ -147,22 +161,17 @@ def bullet_base_ok(position, quat, linear, angular, com_pos, com_rot, out_of_bou
     wx, wy, wz = w * xs, w * ys, w * zs
     xx, xy, xz = x * xs, x * ys, x * zs
     yy, yz, zz = y * ys, y * zs, z * zs
-    r = np.empty((3, 3))
-    r[0, 0], r[0, 1], r[0, 2] = 1.0 - (yy + zz), xy - wz, xz + wy
-    r[1, 0], r[1, 1], r[1, 2] = xy + wz, 1.0 - (xx + zz), yz - wx
-    r[2, 0], r[2, 1], r[2, 2] = xz - wy, yz + wx, 1.0 - (xx + yy)
-    link = np.empty((3, 3))  # r @ com_rot.T
-    for i in range(3):
-        for j in range(3):
-            link[i, j] = r[i, 0] * com_rot[j, 0] + r[i, 1] * com_rot[j, 1] + r[i, 2] * com_rot[j, 2]
-    for i in range(3):
-        origin = position[i] - (link[i, 0] * com_pos[0] + link[i, 1] * com_pos[1] + link[i, 2] * com_pos[2])
+    rows = ((1.0 - (yy + zz), xy - wz, xz + wy), (xy + wz, 1.0 - (xx + zz), yz - wx), (xz - wy, yz + wx, 1.0 - (xx + yy)))
+    for i in range(3):  # row i of the link frame's rotation, r @ com_rot.T, then its origin
+        l0, l1, l2 = _times_transpose(rows[i], com_rot)
+        origin = position[i] - (l0 * com_pos[0] + l1 * com_pos[1] + l2 * com_pos[2])
         if abs(origin) > out_of_bounds:
             return False
-    if link[2, 2] < 0.0:
+    l0, l1, l2 = _times_transpose(rows[2], com_rot)
+    if l2 < 0.0:
         return False
-    tilt[0] = math.asin(max(-1.0, min(1.0, link[2, 1])))
-    tilt[1] = math.asin(max(-1.0, min(1.0, -link[2, 0])))
+    tilt[0] = _clamped_asin(l1)
+    tilt[1] = _clamped_asin(-l0)
     return True
 
 
@@ -183,18 +192,30 @@ def bullet_control_state(targets, trunk, gains, com_rows):
 
 
 @_compiled
-def bullet_control_tick(state, k, quat, out):
-    """PyBullet's stabilized control tick (``PybulletSim.stabilized_control``) in one compiled
-    call: tick ``k``'s joint targets, corrected for the tilt of Bullet's base quaternion ``quat``
-    (x, y, z, w), written into ``out`` (12,).  The same float operations in the same order as
+def _joint_command(state, k, j, roll_error, pitch_error):
+    """Joint ``j``'s corrected target at tick ``k`` (``state``: :func:`bullet_control_state`)."""
+    n = state.shape[0] - 4
+    return _corrected(state[k, j], state[n, j], state[n + 1, j], roll_error, pitch_error)
+
+
+@_compiled
+def bullet_control_tick(state, k, quat):
+    """PyBullet's stabilized control tick (``PybulletSim.stabilized_ticks``) in one compiled
+    call: tick ``k``'s 12 joint targets, corrected for the tilt of Bullet's base quaternion
+    ``quat`` (x, y, z, w).  The same float operations in the same order as
     ``PybulletSim.base_tilt`` then :func:`stabilized_targets`; ``state`` from
-    :func:`bullet_control_state`."""
+    :func:`bullet_control_state`.  Returns a tuple, which Bullet takes as it is (no array to
+    fill and convert to a list each tick)."""
     n = state.shape[0] - 4
     x, y, z, w = quat[0], quat[1], quat[2], quat[3]
     r0, r1, r2 = 2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)
     s_pitch = -(r0 * state[n + 2, 0] + r1 * state[n + 2, 1] + r2 * state[n + 2, 2])
     s_roll = r0 * state[n + 3, 0] + r1 * state[n + 3, 1] + r2 * state[n + 3, 2]
-    roll_error = math.asin(-1.0 if s_roll < -1.0 else 1.0 if s_roll > 1.0 else s_roll) - state[k, 12]
-    pitch_error = math.asin(-1.0 if s_pitch < -1.0 else 1.0 if s_pitch > 1.0 else s_pitch) - state[k, 13]
-    for j in range(12):
-        out[j] = _corrected(state[k, j], state[n, j], state[n + 1, j], roll_error, pitch_error)
+    re = _clamped_asin(s_roll) - state[k, 12]
+    pe = _clamped_asin(s_pitch) - state[k, 13]
+    return (_joint_command(state, k, 0, re, pe), _joint_command(state, k, 1, re, pe),
+            _joint_command(state, k, 2, re, pe), _joint_command(state, k, 3, re, pe),
+            _joint_command(state, k, 4, re, pe), _joint_command(state, k, 5, re, pe),
+            _joint_command(state, k, 6, re, pe), _joint_command(state, k, 7, re, pe),
+            _joint_command(state, k, 8, re, pe), _joint_command(state, k, 9, re, pe),
+            _joint_command(state, k, 10, re, pe), _joint_command(state, k, 11, re, pe))

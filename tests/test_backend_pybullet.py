@@ -430,7 +430,8 @@ def test_armature_adds_to_the_joints_mass_matrix_diagonal():
 def test_compiled_control_tick_is_bit_identical_to_the_verbs():
     """``kernels3d.bullet_control_tick`` against ``base_tilt`` → ``stabilized_targets`` on random
     quaternions and inertial-frame rotations, and end to end: 4 double steps with the compiled
-    tick and with the verbs leave the same joint and base state, bit for bit."""
+    tick and with the verbs leave the same joint and base state, bit for bit (also with a torso
+    COM offset, whose torque Bullet needs every physics step)."""
     from footsim.backends.physics3d import TrunkStabilizer
     from footsim.kernels3d import bullet_control_state, bullet_control_tick, stabilized_targets
 
@@ -444,7 +445,7 @@ def test_compiled_control_tick_is_bit_identical_to_the_verbs():
             rotation, _ = np.linalg.qr(rng.normal(size=(3, 3)))
             rotation *= np.sign(np.linalg.det(rotation))
             rows = (tuple(rotation[0].tolist()), tuple(rotation[1].tolist())) if case % 2 else sim._com_rows
-            state, out = bullet_control_state(targets, trunk, stabilizer.gains, np.array(rows)), np.empty(12)
+            state = bullet_control_state(targets, trunk, stabilizer.gains, np.array(rows))
             for k in range(15):
                 quat = rng.normal(size=4)
                 quat = tuple((quat / np.linalg.norm(quat)).tolist())
@@ -457,15 +458,16 @@ def test_compiled_control_tick_is_bit_identical_to_the_verbs():
                     expected = stabilized_targets(targets, trunk, stabilizer.gains, k, *sim.base_tilt())
                 finally:
                     sim._com_rows = saved
-                bullet_control_tick(state, k, quat, out)
-                assert out.tobytes() == expected.tobytes()
+                assert np.array(bullet_control_tick(state, k, quat)).tobytes() == expected.tobytes()
     finally:
         b.close()
 
-    def walk(compiled):
+    def walk(compiled, randomization=None):
         backend = make_backend("pybullet")
         try:
             backend.compiled_ticks = compiled
+            if randomization:
+                backend.apply_randomization(randomization)
             backend.reset(EMPTY, np.random.default_rng(3))
             if compiled:  # while walking, the compiled tick must not fall back to the verbs
                 backend.sim.set_leg_targets = backend.sim.base_tilt = _refuse
@@ -479,6 +481,9 @@ def test_compiled_control_tick_is_bit_identical_to_the_verbs():
             backend.close()
 
     assert walk(True) == walk(False)
+    # A torso COM offset: Bullet's per-tick external torque inside the compiled loop.
+    offset = {"torso_com_offset_x": 0.01, "torso_com_offset_y": -0.005}
+    assert walk(True, offset) == walk(False, offset) != walk(True)
 
 
 def _refuse(*_):

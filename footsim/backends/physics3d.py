@@ -157,11 +157,14 @@ class PhysicsSim(ABC):
         default, or while the sim holds an error of its own): the driver calls the verbs."""
         return None
 
-    def stabilized_control(self, targets: np.ndarray, trunk: np.ndarray, gains: np.ndarray) -> Callable[[int], None] | None:
-        """For a sim that can do a stabilized control tick cheaper than the verbs: ``tick(k)``
-        commanding ``targets[k]`` corrected by the stabilizer ``gains`` for the measured tilt
-        against ``trunk[k]`` (the result of ``base_tilt`` → ``TrunkStabilizer.correct`` →
-        ``set_leg_targets``).  None (the default): the driver calls the verbs."""
+    def stabilized_ticks(self, targets: np.ndarray, trunk: np.ndarray, gains: np.ndarray,
+                         substeps: int) -> Callable[[int, int], None] | None:
+        """For a sim that can run stabilized control ticks cheaper than the verbs: ``run(k0, k1)``
+        doing control ticks ``k0 … k1 − 1``, each commanding ``targets[k]`` corrected by the
+        stabilizer ``gains`` for the measured tilt against ``trunk[k]`` and then ``substeps``
+        physics timesteps (the result of ``base_tilt`` → ``TrunkStabilizer.correct`` →
+        ``set_leg_targets`` → ``advance``, tick by tick).  None (the default): the driver calls
+        the verbs."""
         return None
 
     def status_ok(self, out_of_bounds: float, tilt: np.ndarray) -> bool:
@@ -397,11 +400,29 @@ class Physics3DBackend(Backend):
             self._next_push = tick + interval
         self._tick += 1
 
-    def _control(self, trajectory):
-        """This double step's per-tick control: ``control(k)`` commands tick ``k``'s joint
-        targets (stabilizer correction, latency, feed-forward, push schedule)."""
+    def _ticks(self, trajectory) -> Callable[[int, int], None]:
+        """This double step's ticks: ``run(k0, k1)`` does control ticks ``k0 … k1 − 1``, each
+        commanding its joint targets (stabilizer correction, latency, feed-forward, push
+        schedule) and then advancing the physics one control period."""
         targets, trunk = trajectory.joint_targets, trajectory.trunk_in_support  # roll, pitch: as in .trunk
         gains = self.stabilizer.gains if self.stabilizer.active else None
+        substeps, advance = self.substeps, self.sim.advance
+        plain = not (self._latency or self._push_ticks is not None)
+        if plain and gains is not None and self.compiled_ticks:
+            # The sim's own loop: fewer Python calls per tick than control + advance (PyBullet).
+            run = self.sim.stabilized_ticks(targets, trunk, gains, substeps)
+            if run is not None:
+                return run
+        control = self._control(targets, trunk, gains, plain)
+
+        def run(k0: int, k1: int) -> None:
+            for k in range(k0, k1):
+                control(k)
+                advance(substeps)
+        return run
+
+    def _control(self, targets, trunk, gains, plain):
+        """``control(k)`` commands tick ``k``'s joint targets (no physics)."""
         arrays = self.sim.control_arrays() if self.compiled_ticks and not self._latency else None
         if arrays is not None:
             # One compiled call per tick does what base_tilt + correct + set_leg_targets do (~1 µs
@@ -416,13 +437,9 @@ class Physics3DBackend(Backend):
                 tick(k)
                 self._push_tick()
             return tick_and_push
-        plain = not (self._latency or self._push_ticks is not None)
         set_targets = self.sim.set_leg_targets if plain else self._send_targets
         if gains is None:
             return lambda k: set_targets(targets[k])
-        tick = self.sim.stabilized_control(targets, trunk, gains) if plain and self.compiled_ticks else None
-        if tick is not None:
-            return tick
         base_tilt = self.sim.base_tilt  # TrunkStabilizer.correct, compiled: stabilized_targets
         return lambda k: set_targets(stabilized_targets(targets, trunk, gains, k, *base_tilt()))
 
@@ -456,13 +473,12 @@ class Physics3DBackend(Backend):
         self._max_tilt = 0.0  # updated by every _status() check of this step
         fell = collided = False
         error = None
-        ticks = 0
-        check, substeps = self.contact_check_every, self.substeps
-        control, advance = self._control(trajectory), self.sim.advance
+        ticks, n_ticks, check = 0, len(trajectory.joint_targets), self.contact_check_every
+        run = self._ticks(trajectory)
         watch_contacts = bool(self.scene.all_obstacles)
-        for ticks in range(1, len(trajectory.joint_targets) + 1):
-            control(ticks - 1)
-            advance(substeps)
+        while ticks < n_ticks:  # runs of `check` ticks, the checks between them
+            start, ticks = ticks, min(ticks + check, n_ticks)
+            run(start, ticks)
             if ticks % check == 0:
                 error, fell = self._status()
                 if error is not None or fell:

@@ -495,23 +495,31 @@ class PybulletSim(PhysicsSim):
                                     positionGains=self.leg_gains, velocityGains=self.leg_vgains,
                                     physicsClientId=self.client)
 
-    def stabilized_control(self, targets: np.ndarray, trunk: np.ndarray, gains: np.ndarray):
-        """The stabilized control tick as one quaternion read, one compiled call
-        (``kernels3d.bullet_control_tick``: ``base_tilt`` + the correction, the same float
-        operations) and the motor command, with less Python around them than the verbs.
-        Position motors only (servo mode: the verbs)."""
+    def stabilized_ticks(self, targets: np.ndarray, trunk: np.ndarray, gains: np.ndarray, substeps: int):
+        """Stabilized control ticks in one Python loop: per tick a quaternion read, one compiled
+        call (``kernels3d.bullet_control_tick``: ``base_tilt`` + the correction, the same float
+        operations), the motor command and the physics steps.  About half the Python calls of
+        control + ``advance``, each of which costs µs because ``stepSimulation`` leaves the
+        caches cold.  Position motors only (servo mode: the verbs)."""
         if self.motor != "position":
             return None
-        read, command, mode = p.getBasePositionAndOrientation, p.setJointMotorControlArray, p.POSITION_CONTROL
+        read, command, mode, step = p.getBasePositionAndOrientation, p.setJointMotorControlArray, \
+            p.POSITION_CONTROL, p.stepSimulation
         body, c, legs = self.robot_id, self.client, self.leg_indices
         forces, position_gains, velocity_gains = self.leg_forces, self.leg_gains, self.leg_vgains
-        state, out = bullet_control_state(targets, trunk, gains, np.array(self._com_rows)), np.empty(len(legs))
+        state = bullet_control_state(targets, trunk, gains, np.array(self._com_rows))
+        physics_steps = range(substeps)
+        wrench = self._apply_wrench if self._wrench else None  # a COM offset (pushes take the verbs)
 
-        def tick(k: int) -> None:
-            bullet_control_tick(state, k, read(body, physicsClientId=c)[1], out)
-            command(body, legs, mode, targetPositions=out.tolist(), forces=forces, positionGains=position_gains,
-                    velocityGains=velocity_gains, physicsClientId=c)
-        return tick
+        def run(k0: int, k1: int) -> None:
+            for k in range(k0, k1):
+                command(body, legs, mode, targetPositions=bullet_control_tick(state, k, read(body, c)[1]), forces=forces,
+                        positionGains=position_gains, velocityGains=velocity_gains, physicsClientId=c)
+                for _ in physics_steps:
+                    if wrench is not None:
+                        wrench()
+                    step(c)
+        return run
 
     def _servo_torques(self) -> list[float]:
         """MuJoCo's actuator law: clip(kp (ctrl − q) − kv q̇, ±effort) − damping q̇ per leg joint."""
@@ -537,8 +545,9 @@ class PybulletSim(PhysicsSim):
                 self._apply_wrench()
                 p.stepSimulation(physicsClientId=c)
             return
+        step = p.stepSimulation
         for _ in range(n_steps):
-            p.stepSimulation(physicsClientId=c)
+            step(c)  # positional: Bullet parses keywords µs slower
 
     # -- randomization --------------------------------------------------------------------
     def _motor_gain(self, name: str) -> float:
@@ -663,8 +672,8 @@ class PybulletSim(PhysicsSim):
         """The driver's periodic check in two Bullet reads and one compiled call (the full check,
         ``sim_error`` + ``base_pose``, is ~40-75 µs of small numpy; 12 times a double step)."""
         c, body = self.client, self.robot_id
-        position, orientation = p.getBasePositionAndOrientation(body, physicsClientId=c)
-        linear, angular = p.getBaseVelocity(body, physicsClientId=c)
+        position, orientation = p.getBasePositionAndOrientation(body, c)
+        linear, angular = p.getBaseVelocity(body, c)
         return bullet_base_ok(position, orientation, linear, angular, self._com_pos, self._com_rot, out_of_bounds,
                               self.max_base_speed, tilt)
 
