@@ -90,7 +90,9 @@ def knots_state(knots: Sequence[Knot], t: float) -> tuple[float, float, float]:
     if not T > 0.0:
         raise ValueError("knot times must strictly increase")
     c2 = 0.5 * a0
-    c3, c4, c5 = _quintic_high(p1 - p0, v0, a0, v1, a1, T)
+    # The same formula as the compiled tables, run as Python: a compiled call from Python costs
+    # more than these few float operations, by far when the caches are cold (after physics).
+    c3, c4, c5 = _quintic_high.py_func(p1 - p0, v0, a0, v1, a1, T)
     x = t - t0
     pos = p0 + x * (v0 + x * (c2 + x * (c3 + x * (c4 + x * c5))))
     vel = v0 + x * (2.0 * c2 + x * (3.0 * c3 + x * (4.0 * c4 + x * 5.0 * c5)))
