@@ -46,6 +46,7 @@ the same reason.)
 from __future__ import annotations
 
 import contextlib
+import functools
 import math
 import os
 import sys
@@ -59,6 +60,7 @@ from scipy.spatial.transform import Rotation
 
 from footsim.backends.base import RenderOverlay
 from footsim.backends.physics3d import Physics3DBackend, PhysicsSim, levelling_rotation
+from footsim.kernels2d import typed_entry
 from footsim.kernels3d import bullet_base_ok, bullet_control_state, bullet_control_tick
 from footsim.robots.spec import RobotSpec
 from footsim.robots.urdf import build_urdf
@@ -151,6 +153,15 @@ PYBULLET_TERMS = frozenset({
     "floor_friction", "foot_friction", "link_mass_scale", "torso_com_offset_x", "torso_com_offset_y",
     "actuator_kp_scale", "torque_limit_scale", "joint_damping_scale", "terrain_slope",
 })
+
+
+@functools.cache
+def _compiled_per_tick():
+    """``bullet_control_tick`` and ``bullet_base_ok`` for the argument types they get here (Bullet's
+    tuples of floats, float64 C arrays, floats), without numba's per-call type resolution."""
+    v3, quat, tick_state = (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0), np.zeros((5, 14))
+    return (typed_entry(bullet_control_tick, tick_state, 0, quat),
+            typed_entry(bullet_base_ok, v3, quat, v3, v3, np.zeros(3), np.eye(3), 1.0, 1.0, np.zeros(2)))
 
 
 class PybulletSim(PhysicsSim):
@@ -508,12 +519,13 @@ class PybulletSim(PhysicsSim):
         body, c, legs = self.robot_id, self.client, self.leg_indices
         forces, position_gains, velocity_gains = self.leg_forces, self.leg_gains, self.leg_vgains
         state = bullet_control_state(targets, trunk, gains, np.array(self._com_rows))
+        control_tick = _compiled_per_tick()[0]
         physics_steps = range(substeps)
         wrench = self._apply_wrench if self._wrench else None  # a COM offset (pushes take the verbs)
 
         def run(k0: int, k1: int) -> None:
             for k in range(k0, k1):
-                command(body, legs, mode, targetPositions=bullet_control_tick(state, k, read(body, c)[1]), forces=forces,
+                command(body, legs, mode, targetPositions=control_tick(state, k, read(body, c)[1]), forces=forces,
                         positionGains=position_gains, velocityGains=velocity_gains, physicsClientId=c)
                 for _ in physics_steps:
                     if wrench is not None:
@@ -674,8 +686,8 @@ class PybulletSim(PhysicsSim):
         c, body = self.client, self.robot_id
         position, orientation = p.getBasePositionAndOrientation(body, c)
         linear, angular = p.getBaseVelocity(body, c)
-        return bullet_base_ok(position, orientation, linear, angular, self._com_pos, self._com_rot, out_of_bounds,
-                              self.max_base_speed, tilt)
+        return _compiled_per_tick()[1](position, orientation, linear, angular, self._com_pos, self._com_rot,
+                                       float(out_of_bounds), self.max_base_speed, tilt)
 
     def _healthy(self) -> bool:
         """No sim error and the base within 50 m of the origin (else the world is rebuilt)."""

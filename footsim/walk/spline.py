@@ -70,6 +70,9 @@ def _quintic_high(dp, v0, a0, v1, a1, T):
             (12.0 * dp - 6.0 * (v1 + v0) * T - (a0 - a1) * T2) / (2.0 * T3 * T2))
 
 
+_quintic_high_python = getattr(_quintic_high, "py_func", _quintic_high)  # NUMBA_DISABLE_JIT: the function itself
+
+
 def knots_state(knots: Sequence[Knot], t: float) -> tuple[float, float, float]:
     """Position, velocity, acceleration at time ``t`` of the one channel through ``knots``.
 
@@ -92,7 +95,7 @@ def knots_state(knots: Sequence[Knot], t: float) -> tuple[float, float, float]:
     c2 = 0.5 * a0
     # The same formula as the compiled tables, run as Python: a compiled call from Python costs
     # more than these few float operations, by far when the caches are cold (after physics).
-    c3, c4, c5 = _quintic_high.py_func(p1 - p0, v0, a0, v1, a1, T)
+    c3, c4, c5 = _quintic_high_python(p1 - p0, v0, a0, v1, a1, T)
     x = t - t0
     pos = p0 + x * (v0 + x * (c2 + x * (c3 + x * (c4 + x * c5))))
     vel = v0 + x * (2.0 * c2 + x * (3.0 * c3 + x * (4.0 * c4 + x * 5.0 * c5)))
