@@ -125,6 +125,27 @@ def test_control_tick_python_function_matches_the_compiled_one():
         np.testing.assert_array_equal(_bits(a), _bits(b))
 
 
+
+def test_typed_entry_is_the_compiled_kernel_without_dispatch():
+    """``kernels2d.typed_entry``: the compiled code itself (not the dispatcher), returning what
+    the dispatcher returns; and the plain function where there is nothing compiled."""
+    from footsim.kernels2d import typed_entry
+    from footsim.kernels3d import bullet_control_state, bullet_control_tick
+
+    rng = np.random.default_rng(2)
+    targets, trunk = _random_case(rng, 8)
+    state = bullet_control_state(targets, trunk, TrunkStabilizer(**GAINS).gains, np.eye(3)[:2])
+    entry = typed_entry(bullet_control_tick, state, 0, (0.0, 0.0, 0.0, 1.0))
+    assert entry is not bullet_control_tick and callable(entry)
+    for k in range(8):
+        quat = rng.normal(size=4)
+        quat = tuple((quat / np.linalg.norm(quat)).tolist())
+        assert entry(state, k, quat) == bullet_control_tick(state, k, quat) == bullet_control_tick.py_func(state, k, quat)
+
+    def plain(x):
+        return x + 1
+    assert typed_entry(plain, 1) is plain
+
 def test_all_finite_matches_numpy():
     rng = np.random.default_rng(2)
     for shape in [(0,), (3,), (3, 3), (7, 5)]:
