@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from footsim.walk.spline import PiecewiseQuintic, QuinticSegment, knots_state, quintic_coefficients
+from footsim.walk.spline import PiecewiseQuintic, QuinticSegment, knots_state, quintic_coefficients, sample_positions
 
 
 def test_rest_to_rest_segment_is_the_textbook_minimum_jerk_polynomial():
@@ -91,6 +91,8 @@ def test_knots_default_velocity_and_acceleration_to_zero():
 def test_invalid_knots_raise(channels):
     with pytest.raises(ValueError):
         PiecewiseQuintic(channels)
+    with pytest.raises(ValueError):
+        sample_positions(channels, np.zeros((max(len(channels), 1), 3)))
 
 
 def test_compiled_positions_equal_the_numpy_evaluation_bit_for_bit():
@@ -111,3 +113,5 @@ def test_compiled_positions_equal_the_numpy_evaluation_bit_for_bit():
         per_channel[:, 0] = [c[-1][0] for c in channels]  # each channel's last knot
         expected = np.stack([spline.evaluate(row)[0][i] for i, row in enumerate(per_channel)])
         np.testing.assert_array_equal(spline.positions(per_channel), expected)
+        # the walk engine's path: tables and sampling in one call, no spline object
+        np.testing.assert_array_equal(sample_positions(channels, per_channel), expected)

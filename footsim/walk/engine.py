@@ -49,7 +49,7 @@ from footsim.geometry import Pose2D, mean_pose, wrap_angles
 from footsim.walk.footsteps import DoubleStep, FeetState, Footstep, FootstepGeometry, Side
 from footsim.walk.ik import LEG_JOINT_NAMES, LegGeometry, legs_ik
 from footsim.walk.params import WalkParams
-from footsim.walk.spline import PiecewiseQuintic, knots_state
+from footsim.walk.spline import PiecewiseQuintic, knots_state, sample_positions
 
 __all__ = ["LEG_JOINT_NAMES", "QuinticWalk", "WalkState", "WalkTrajectory"]
 
@@ -616,7 +616,7 @@ class QuinticWalk:
             n = len(plan.tick_times)
             times[i, :n] = plan.tick_times
             times[i, n:] = plan.duration  # padding, discarded
-        sampled = PiecewiseQuintic(channels).positions(np.repeat(times, per_plan, axis=0))
+        sampled = sample_positions(channels, np.repeat(times, per_plan, axis=0))
         n_foot = len(_FOOT_CHANNELS)
         parts = []
         for i, plan in enumerate(plans):

@@ -121,6 +121,46 @@ class QuinticSegment:
         return evaluate_polynomial(self.coefficients, np.asarray(t, dtype=float))
 
 
+def _padded_knots(channels: Sequence[Sequence[Knot]]) -> tuple[np.ndarray, np.ndarray]:
+    """Every channel's knots as ``(time, pos, vel, acc)`` rows (velocity and acceleration default
+    to zero) in one ``(channels, knots, 4)`` array, shorter channels padded by repeating their
+    last knot (zero-length segments, never selected); and each channel's number of segments."""
+    if len(channels) == 0:
+        raise ValueError("a spline needs at least one channel")
+    counts = [len(knots) for knots in channels]
+    if min(counts) < 2:
+        raise ValueError(f"every channel needs at least two knots, got {counts}")
+    max_knots = max(counts)
+    rows = []
+    for knots in channels:
+        padded = [knot if len(knot) == 4 else tuple(knot) + _ZEROS[len(knot)] for knot in knots]
+        rows += padded
+        if len(padded) < max_knots:
+            rows += padded[-1:] * (max_knots - len(padded))
+    return np.array(rows, dtype=float).reshape(len(channels), max_knots, 4), np.array(counts) - 1
+
+
+def _raise_for(status: int) -> None:
+    """The error of a ``_segment_tables`` status."""
+    if status == 1:
+        raise ValueError("knot times, positions, velocities and accelerations must be finite")
+    if status == 2:
+        raise ValueError("knot times must strictly increase within each channel")
+
+
+def sample_positions(channels: Sequence[Sequence[Knot]], times: np.ndarray) -> np.ndarray:
+    """``PiecewiseQuintic(channels).positions(times)`` for per-channel ``times`` ``(channels, n)``,
+    in one compiled call and without the spline object (the walk engine samples each double
+    step's splines once): the same float operations, so the same positions."""
+    data, n_segments = _padded_knots(channels)
+    times = np.ascontiguousarray(times, dtype=float)
+    if times.ndim != 2 or times.shape[0] != data.shape[0]:
+        raise ValueError(f"per-channel times need {data.shape[0]} rows, got {times.shape}")
+    out = np.empty(times.shape)
+    _raise_for(_tables_and_positions(data, n_segments, times, out))
+    return out
+
+
 class PiecewiseQuintic:
     """Several channels of piecewise quintic splines, each through its own knots.
 
@@ -130,24 +170,8 @@ class PiecewiseQuintic:
     """
 
     def __init__(self, channels: Sequence[Sequence[Knot]]):
-        n_channels = len(channels)
-        if n_channels == 0:
-            raise ValueError("a spline needs at least one channel")
-        counts = [len(knots) for knots in channels]
-        if min(counts) < 2:
-            raise ValueError(f"every channel needs at least two knots, got {counts}")
-        max_knots = max(counts)
-        # Knots padded to a rectangular (channels, knots, 4) array by repeating each channel's
-        # last knot; padded segments have zero length and are never selected.
-        rows = []
-        for knots in channels:
-            padded = [knot if len(knot) == 4 else tuple(knot) + _ZEROS[len(knot)] for knot in knots]
-            rows += padded
-            if len(padded) < max_knots:
-                rows += padded[-1:] * (max_knots - len(padded))
-        data = np.array(rows, dtype=float).reshape(n_channels, max_knots, 4)
-        n_segments = np.array(counts) - 1
-        n_seg_max = max_knots - 1
+        data, n_segments = _padded_knots(channels)
+        n_channels, n_seg_max = data.shape[0], data.shape[1] - 1
         # Flat, power-major coefficient table: column = channel * n_seg_max + segment.  All
         # channels' breakpoints in one sorted array: channel c's are shifted by c * span, so one
         # searchsorted locates the segment of every (channel, time) pair at once.  One compiled
@@ -156,10 +180,7 @@ class PiecewiseQuintic:
         self._segment_start = np.empty(n_channels * n_seg_max)
         self._breaks = np.empty(n_channels * n_seg_max)
         status, t_min, span = _segment_tables(data, n_segments, self._coefficients, self._segment_start, self._breaks)
-        if status == 1:
-            raise ValueError("knot times, positions, velocities and accelerations must be finite")
-        if status == 2:
-            raise ValueError("knot times must strictly increase within each channel")
+        _raise_for(status)
         self.times = data[:, :, 0]  # (channels, max_knots); padded with each channel's last knot time
         self.n_segments = n_segments
         # Queries are clamped into the band where the channel shift is unambiguous (times beyond a
@@ -286,3 +307,25 @@ def _segment_tables(data, n_segments, coefficients, segment_start, breaks):
             coefficients[3, column], coefficients[4, column], coefficients[5, column] = _quintic_high(
                 p1 - p0, v0, a0, v1, a1, T)
     return 0, t_min, span
+
+
+
+@_compiled
+def _tables_and_positions(data, n_segments, times, out):
+    """:func:`sample_positions`: :func:`_segment_tables` then :func:`_sample_positions`, with
+    :class:`PiecewiseQuintic`'s band and channel offsets computed as it computes them.  Returns
+    the tables' status (0: ``out`` written)."""
+    n_channels, n_seg_max = data.shape[0], data.shape[1] - 1
+    coefficients = np.empty((6, n_channels * n_seg_max))
+    segment_start, breaks = np.empty(n_channels * n_seg_max), np.empty(n_channels * n_seg_max)
+    status, t_min, span = _segment_tables(data, n_segments, coefficients, segment_start, breaks)
+    if status != 0:
+        return status
+    band = 0.5 * (span - 1.0)
+    offsets, last_column = np.empty(n_channels), np.empty(n_channels, dtype=np.int64)
+    for ch in range(n_channels):
+        offsets[ch] = ch * span
+        last_column[ch] = ch * n_seg_max + (n_segments[ch] - 1)
+    _sample_positions(coefficients, segment_start, breaks, offsets, last_column, t_min - band, t_min + span - band,
+                      times, out)
+    return 0
