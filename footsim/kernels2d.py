@@ -47,8 +47,9 @@ def typed_entry(kernel, *example):
     """``kernel``'s compiled code for exactly the argument types of ``example``, callable without
     numba's per-call type resolution: about 0.5 µs less a call in a tight loop, and more where a
     physics step has left the caches cold.  For per-tick loops whose argument types never change
-    (the caller guarantees that; other types are not checked).  The kernel itself where numba
-    offers no entry point (``NUMBA_DISABLE_JIT=1``)."""
+    (the caller guarantees that; other types are not checked).  Getting it costs ~0.1 ms (numba's
+    compile lock), so get it once, not per double step.  The kernel itself where numba offers no
+    entry point (``NUMBA_DISABLE_JIT=1``)."""
     compile_for = getattr(kernel, "compile", None)
     if compile_for is None:
         return kernel
