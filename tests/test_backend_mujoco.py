@@ -58,6 +58,30 @@ def test_render_rgb_frame():
     assert len(np.unique(frame.reshape(-1, 3), axis=0)) > 50
 
 
+def test_render_with_rendering_switched_off_names_mujoco_gl():
+    # A fresh process: mujoco and dm_control choose their GL backend once, at import.
+    import subprocess
+    import sys
+
+    script = (
+        "from footsim.env import FootstepEnv\n"
+        "for name in ('mujoco', 'dm_control'):\n"
+        "    env = FootstepEnv(backend=name, render_mode='rgb_array')\n"
+        "    env.reset(seed=0)\n"
+        "    try:\n"
+        "        env.render()\n"
+        "    except RuntimeError as error:\n"
+        "        print(name, error)\n"
+        "    env.close()\n"
+    )
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300,
+                            env={**os.environ, "MUJOCO_GL": "disable"})
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.splitlines()
+    assert [line.split()[0] for line in lines] == ["mujoco", "dm_control"]
+    assert all("MUJOCO_GL=disable" in line for line in lines)
+
+
 def test_short_walk_moves_forward_without_falling(backend):
     start = backend.reset(EMPTY, np.random.default_rng(0))
     for _ in range(5):

@@ -57,6 +57,7 @@ from footsim.backends.mujoco_backend import (
     foot_contact,
     levelling_quat,
     obstacle_geometry,
+    require_rendering,
 )
 from footsim.backends.mujoco_randomization import MujocoRandomization
 from footsim.backends.physics3d import Physics3DBackend, PhysicsSim, quat_to_matrix
@@ -265,6 +266,7 @@ class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # rand
 
     # -- rendering --------------------------------------------------------------------------
     def render(self, overlay: RenderOverlay | None, width: int, height: int) -> np.ndarray | None:
+        require_rendering()
         width, height = min(int(width), self.max_render_size), min(int(height), self.max_render_size)
         callback = None if overlay is None else (lambda physics, scene: draw_overlay(scene, overlay))
         return np.array(self.physics.render(height=height, width=width, camera_id=CAMERA, scene_callback=callback))

@@ -20,6 +20,16 @@ import numpy as np
 
 if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
     os.environ["MUJOCO_GL"] = "egl"  # headless rendering; must be set before mujoco is imported
+# mujoco and dm_control pick their GL backend once, at import: the value that counts is this one.
+_MUJOCO_GL_AT_IMPORT = os.environ.get("MUJOCO_GL", "").lower().strip()
+
+
+def require_rendering() -> None:
+    """Raise a clear error if this process switched rendering off (GL's own error does not say so)."""
+    if _MUJOCO_GL_AT_IMPORT in ("disable", "disabled", "off", "false", "0"):
+        raise RuntimeError(
+            f"rendering is disabled in this process (MUJOCO_GL={_MUJOCO_GL_AT_IMPORT} when mujoco was "
+            "imported); start it with MUJOCO_GL=egl (headless) or unset to render")
 
 from footsim.backends.base import RenderOverlay
 from footsim.backends.mujoco_randomization import MujocoRandomization
@@ -407,6 +417,7 @@ class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomi
 
     # -- rendering --------------------------------------------------------------------------
     def render(self, overlay: RenderOverlay | None, width: int, height: int) -> np.ndarray | None:
+        require_rendering()
         width, height = min(int(width), self.max_render_size), min(int(height), self.max_render_size)
         if self._renderer is None or (self._renderer.width, self._renderer.height) != (width, height):
             if self._renderer is not None:
