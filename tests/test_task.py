@@ -127,6 +127,40 @@ def test_scene_file_round_trip_and_format(tmp_path):
     assert load_scenes(path) == scenes
 
 
+def test_scene_file_gets_the_umask_permissions_and_a_failed_write_keeps_the_old_file(tmp_path):
+    import os
+    import stat
+
+    from footsim.tasks.scenes import atomic_save
+
+    path = tmp_path / "s.json"
+    old_umask = os.umask(0o027)
+    try:
+        save_scenes(path, sample_scenes(SceneSampler(), 2, seed=1))
+    finally:
+        os.umask(old_umask)
+    assert stat.S_IMODE(path.stat().st_mode) == 0o640  # 0o666 & ~0o027, not mkstemp's 0o600
+    before = path.read_bytes()
+
+    def crash(tmp):
+        with open(tmp, "w") as fh:
+            fh.write("half a fi")
+        raise OSError("disk full")
+    with pytest.raises(OSError, match="disk full"):
+        atomic_save(crash, path)
+    assert path.read_bytes() == before
+    assert [p.name for p in tmp_path.iterdir()] == ["s.json"]  # no temporary file left behind
+
+
+def test_scene_from_plain_tuples_equals_the_typed_scene_and_bad_ones_are_named():
+    typed = Scene(Pose2D.of(1.0, 2.0, 0.5), (Obstacle(0.5, 0.0, 0.1),), Obstacle(1.0, 1.0, 0.075))
+    assert Scene(goal=(1, 2, 0.5), obstacles=[(0.5, 0, 0.1)], ball=[1, 1, 0.075]) == typed
+    with pytest.raises(ValueError, match=r"Scene.obstacles\[1\]"):
+        Scene(goal=(1, 2, 0), obstacles=[(0.5, 0, 0.1), (0.5, 0)])
+    with pytest.raises(ValueError, match="Scene.goal"):
+        Scene(goal=(1, 2))
+
+
 @pytest.mark.parametrize("bad,msg", [
     ({"goal": [0, 0]}, "scene 1: 'goal'"),
     ({"goal": [0, 0, "x"]}, "scene 1: 'goal'"),

@@ -5,32 +5,17 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
-from footsim.tasks.scenes import atomic_write_text
+from footsim.tasks.scenes import atomic_save, atomic_write_text  # noqa: F401  (atomic_save is imported from here)
 
 MODEL_FILE = "model.zip"
 VECNORM_FILE = "vecnormalize.pkl"
 CONFIG_FILE = "config.yaml"
 CHECKPOINT_DIR = "checkpoints"
-
-
-def atomic_save(save: Callable[[str], None], path: str | os.PathLike, suffix: str) -> None:
-    """Let ``save`` write a temporary file beside ``path`` and move it into place atomically."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=suffix)
-    os.close(fd)
-    try:
-        save(tmp)
-        os.replace(tmp, path)
-    finally:
-        Path(tmp).unlink(missing_ok=True)
 
 
 def write_json(path: str | os.PathLike, data) -> None:

@@ -20,7 +20,7 @@ import tempfile
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
-from typing import NamedTuple
+from typing import Callable, NamedTuple
 
 import numpy as np
 
@@ -41,6 +41,18 @@ class Scene:
     goal: Pose2D
     obstacles: tuple[Obstacle, ...] = ()
     ball: Obstacle | None = None
+
+    def __post_init__(self) -> None:
+        # Plain (x, y, θ) / (x, y, r) sequences from user code become Pose2D / Obstacle here, with
+        # a clear error if malformed; the sampler's and the loader's scenes pass through as they are.
+        if not isinstance(self.goal, Pose2D):
+            object.__setattr__(self, "goal", Pose2D.of(*_finite_list(self.goal, 3, "Scene.goal")))
+        if type(self.obstacles) is not tuple or not all(type(o) is Obstacle for o in self.obstacles):
+            object.__setattr__(self, "obstacles", tuple(
+                o if type(o) is Obstacle else Obstacle(*_circle(o, f"Scene.obstacles[{k}]"))
+                for k, o in enumerate(self.obstacles)))
+        if self.ball is not None and type(self.ball) is not Obstacle:
+            object.__setattr__(self, "ball", Obstacle(*_circle(self.ball, "Scene.ball")))
 
     @cached_property
     def all_obstacles(self) -> tuple[Obstacle, ...]:
@@ -187,20 +199,37 @@ def sample_scenes(sampler: SceneSampler, n: int, seed: int) -> list[Scene]:
     return [sampler.sample(rng) for _ in range(n)]
 
 
-def atomic_write_text(path: str | os.PathLike, text: str) -> None:
-    """Write a file so that a crash leaves either the old or the new content, never a half file."""
+def _default_file_mode() -> int:
+    """What ``open()`` would give a new file under the current umask (``mkstemp`` gives 0600)."""
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
+def atomic_save(save: Callable[[str], None], path: str | os.PathLike, suffix: str = ".tmp") -> None:
+    """Let ``save`` write a temporary file beside ``path``, then move it into place: a crash
+    leaves either the old or the new file, never a half one.  The file gets the usual
+    permissions (umask), not ``mkstemp``'s owner-only ones."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=suffix)
+    os.close(fd)
     try:
-        with os.fdopen(fd, "w") as fh:
+        save(tmp)
+        os.chmod(tmp, _default_file_mode())
+        os.replace(tmp, path)
+    finally:
+        Path(tmp).unlink(missing_ok=True)
+
+
+def atomic_write_text(path: str | os.PathLike, text: str) -> None:
+    """``text`` into ``path`` atomically (``atomic_save``), synced to disk before the move."""
+    def save(tmp: str) -> None:
+        with open(tmp, "w") as fh:
             fh.write(text)
             fh.flush()
             os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    atomic_save(save, path)
 
 
 def save_scenes(path: str | os.PathLike, scenes: list[Scene], meta: dict | None = None) -> None:
