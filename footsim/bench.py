@@ -114,12 +114,18 @@ def main(argv: list[str] | None = None) -> None:
     unknown = [n for n in names if n not in BENCHMARKS]
     if unknown:
         raise SystemExit(f"footsim-bench: unknown benchmark(s) {unknown}; valid: {sorted(BENCHMARKS)}")
-    repeats = int(args["repeats"])
+    try:
+        repeats, steps = int(args["repeats"]), int(args["steps"])
+    except ValueError:
+        raise SystemExit(f"footsim-bench: repeats and steps must be integers, got repeats={args['repeats']} "
+                         f"steps={args['steps']}") from None
+    if repeats < 1 or steps < 1:
+        raise SystemExit(f"footsim-bench: repeats and steps must be >= 1, got repeats={repeats} steps={steps}")
     print(f"machine: {_machine()}; repeats: {repeats} (median reported)\n")
     for name in names:
         kwargs = {"repeats": repeats}
         if name == "env2d":
-            kwargs["steps"] = int(args["steps"])
+            kwargs["steps"] = steps
             kwargs["wrapped"] = str(args["wrapped"]).lower() in ("1", "true", "yes")
         try:
             rows = BENCHMARKS[name](**kwargs)

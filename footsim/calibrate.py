@@ -17,7 +17,7 @@ with intercept and residual σ, and the fall probability per double step as a lo
 the absolute action values.  ``backend=pymunk backend.execution_model=FILE`` makes the 2D
 backend execute through it (:class:`ExecutionModel`, ``footsim.backends.pymunk2d``).
 
-``footsim-calibrate compare=FILE.json [backends=mujoco] [out=FILE.md]`` runs the walkcheck
+``footsim-calibrate compare=FILE.json [backend=mujoco] [out=FILE.md]`` runs the walkcheck
 sequences on pymunk with and without the model and on the 3D backend and prints the
 consistency table (final planar pose differences).
 """
@@ -305,12 +305,14 @@ USAGE = ("usage: footsim-calibrate backend=mujoco [n_steps=800] [seed=0] [scale=
 
 
 def main(argv: list[str] | None = None) -> None:
+    from footsim.backends.base import require_known_backends
     from footsim.rl.common import write_json
     from footsim.tasks.scenes import atomic_write_text, parse_kv_args
 
     args = parse_kv_args(sys.argv[1:] if argv is None else argv,
                          {"backend": "mujoco", "n_steps": "800", "seed": "0", "scale": "1.0", "repeat": "0.9",
                           "features": ",".join(DEFAULT_FEATURES), "out": "", "compare": ""}, "footsim-calibrate")
+    require_known_backends([args["backend"]], "footsim-calibrate")
     if args["compare"]:
         _, table = consistency(args["compare"], args["backend"], int(args["seed"]))
         print(table)

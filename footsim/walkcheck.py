@@ -133,7 +133,11 @@ def main(argv: list[str] | None = None) -> None:
 
     args = parse_kv_args(sys.argv[1:] if argv is None else argv,
                          {"backends": "mujoco,dm_control,pybullet", "out": ""}, "footsim-walkcheck")
-    backends = [b for b in args["backends"].split(",") if b and b != "pymunk"]
+    from footsim.backends.base import require_known_backends
+
+    backends = [b for b in args["backends"].split(",") if b]
+    require_known_backends(backends, "footsim-walkcheck")
+    backends = [b for b in backends if b != "pymunk"]  # the consistency report adds 2D itself
     _, table = walkcheck(backends)
     print(table)
     if args["out"]:

@@ -95,6 +95,20 @@ def test_scenes_cli_rejects_bad_n(tmp_path):
     assert proc.returncode != 0 and "n must be > 0" in proc.stderr
 
 
+@pytest.mark.parametrize("command", [
+    ["footsim-walkcheck", "backends=mujoco,bogus"],
+    ["footsim-calibrate", "backend=bogus", "out=OUT/cal.json"],
+    ["footsim-transfer-matrix", "backends=pymunk,bogus", "out=OUT/matrix"],
+])
+def test_unknown_backend_on_the_command_line_is_named_before_any_work(tmp_path, command):
+    proc = run(*[c.replace("OUT", str(tmp_path)) for c in command], check=False)
+    assert proc.returncode != 0
+    assert proc.stderr.strip().splitlines()[-1].endswith(
+        "unknown backend(s) bogus; valid backends: pymunk, mujoco, dm_control, pybullet")
+    assert "Traceback" not in proc.stderr
+    assert list(tmp_path.iterdir()) == []  # nothing written
+
+
 def test_conf_is_found_from_a_built_wheel(tmp_path):
     repo = Path(__file__).resolve().parents[1]
     run(sys.executable, "-m", "build", "--wheel", "--outdir", str(tmp_path / "dist"), str(repo))

@@ -89,6 +89,13 @@ BACKENDS: dict[str, BackendEntry] = {
 _SIMULATOR_MODULES = {"mujoco": "mujoco", "dm_control": "dm_control", "pybullet": "pybullet"}
 
 
+def require_known_backends(names, command: str) -> None:
+    """A command-line check before any work: exit with a message naming unknown backends."""
+    unknown = [n for n in names if n not in BACKENDS]
+    if unknown:
+        raise SystemExit(f"{command}: unknown backend(s) {', '.join(unknown)}; valid backends: {', '.join(BACKENDS)}")
+
+
 def backend_class(name: str) -> type[Backend]:
     """Resolve a backend name, with clear errors for unknown names and missing simulators."""
     try:

@@ -65,6 +65,9 @@ def parse_args(argv: list[str]) -> tuple[dict, list[str]]:
         raise SystemExit("footsim-transfer-matrix: backends= is empty")
     if not cfg["randomization"]:
         cfg["randomization"] = ["none"]
+    from footsim.backends.base import require_known_backends
+
+    require_known_backends((cfg["backends"] or []) + (cfg["eval_backends"] or []), "footsim-transfer-matrix")
     if cfg["runs"] and train_overrides:
         raise SystemExit(f"footsim-transfer-matrix: runs= reuses trained policies; unknown keys {train_overrides} "
                          f"(own keys: {sorted(cfg)})")
@@ -271,7 +274,7 @@ def transfer_matrix(cfg: dict, train_overrides: list[str]) -> list[dict]:
     if len(tasks) > 1:
         print(f"note: the runs were trained on different tasks {sorted(tasks)}; all are evaluated on one scene file")
     scenes = scene_file(cfg, configs[runs[0]], out)
-    print(f"{len(runs)} policies (trained on {', '.join(train_backends)}) x eval backends {evals} x randomization "
+    print(f"{len(runs)} {'policy' if len(runs) == 1 else 'policies'} (trained on {', '.join(train_backends)}) x eval backends {evals} x randomization "
           f"{cfg['randomization']}; scenes: {scenes}", flush=True)
 
     rows = []
