@@ -109,6 +109,25 @@ def test_unknown_backend_on_the_command_line_is_named_before_any_work(tmp_path, 
     assert list(tmp_path.iterdir()) == []  # nothing written
 
 
+def test_ctrl_c_saves_a_checkpoint_and_exits_130_without_a_traceback(tmp_path):
+    import os
+    import signal
+    import time
+
+    proc = subprocess.Popen(["footsim-train", *TINY, "train.total_timesteps=10000000", f"hydra.run.dir={tmp_path}"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    latest = tmp_path / "checkpoints" / "latest.json"
+    deadline = time.monotonic() + 300
+    while not latest.exists() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.2)
+    os.killpg(proc.pid, signal.SIGINT)  # as a terminal's Ctrl-C: the whole process group
+    out, err = proc.communicate(timeout=300)
+    assert proc.returncode == 130, err[-3000:]
+    assert f"interrupted: checkpoint saved; continue with footsim-train resume={tmp_path}" in out
+    assert "Traceback" not in err
+    assert json.loads(latest.read_text())["num_timesteps"] > 0
+
+
 def test_conf_is_found_from_a_built_wheel(tmp_path):
     repo = Path(__file__).resolve().parents[1]
     run(sys.executable, "-m", "build", "--wheel", "--outdir", str(tmp_path / "dist"), str(repo))

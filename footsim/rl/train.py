@@ -8,6 +8,7 @@ steps), TensorBoard logs in ``tb/``, and ``eval/`` with the evaluation results.
 
 from __future__ import annotations
 
+import contextlib
 import time
 from pathlib import Path
 
@@ -172,8 +173,10 @@ def train(cfg: DictConfig, run_dir: Path) -> dict:
                         reset_num_timesteps=resume_dir is None, tb_log_name="ppo")
         except KeyboardInterrupt:
             save_checkpoint(model, run_dir)
-            print(f"\ninterrupted: checkpoint saved; continue with footsim-train resume={run_dir}")
-            raise
+            print(f"\ninterrupted: checkpoint saved; continue with footsim-train resume={run_dir}", flush=True)
+            with contextlib.suppress(Exception):  # workers got the same Ctrl-C and may be gone already
+                venv.close()
+            raise SystemExit(130) from None  # the shell's code for Ctrl-C, without a traceback
     wall = time.time() - started
     atomic_save(model.save, run_dir / MODEL_FILE, ".zip")
     if isinstance(model.get_vec_normalize_env(), VecNormalize):
