@@ -78,6 +78,19 @@ def test_scenes_train_eval_resume(tmp_path):
     assert info["num_timesteps"] >= 512
 
 
+def test_baseline_evaluation_applies_the_randomization_preset(tmp_path):
+    finals = {}
+    for preset in ("none", "default"):
+        out_dir = tmp_path / preset
+        out = run("footsim-eval", "controller=velocity", "n_scenes=3", "plot=false", f"randomization={preset}",
+                  f"hydra.run.dir={out_dir}").stdout
+        assert ("randomization=default" in out) == (preset == "default")
+        rows = (out_dir / "episodes.csv").read_text().splitlines()[1:]
+        finals[preset] = [row.split(",")[6:9] for row in rows]  # final_x, final_y, final_theta
+    # default randomization adds footstep landing noise in 2D: the executed paths differ
+    assert finals["none"] != finals["default"]
+
+
 @pytest.mark.parametrize("override,message", [
     ("backend=bogus", "backend"),
     ("train.n_envs=0", "train.n_envs must be a positive integer"),

@@ -201,6 +201,12 @@ def eval_scenes(cfg_eval, sampler) -> list[Scene]:
     return sample_scenes(sampler, int(cfg_eval.n_scenes), int(cfg_eval.scenes_seed))
 
 
+def _conditions(backend: str, task: str, noise: str, randomization: str | None) -> str:
+    """A result label's conditions; randomization only when there is any."""
+    text = f"{backend}, {task}, noise={noise}"
+    return text if randomization in (None, "", "none") else f"{text}, randomization={randomization}"
+
+
 def evaluate_run(run_cfg, run_dir: Path, out_dir: Path, cfg_eval, label: str | None = None) -> dict:
     """Evaluate a run's trained policy with the (possibly overridden) run config."""
     from footsim.env import make_env
@@ -219,7 +225,9 @@ def evaluate_run(run_cfg, run_dir: Path, out_dir: Path, cfg_eval, label: str | N
     finally:
         env.close()
     summary = summarize(records)
-    name = label or f"policy ({run_cfg.backend.name}, {run_cfg.task.name}, noise={run_cfg.noise.get('name', '')})"
+    randomization = (run_cfg.get("randomization") or {}).get("name")
+    conditions = _conditions(run_cfg.backend.name, run_cfg.task.name, run_cfg.noise.get("name", ""), randomization)
+    name = label or f"policy ({conditions})"
     summary["label"] = name
     write_results(out_dir, records, summary, scenes, plot=bool(cfg_eval.get("plot", True)), title=name)
     print(format_table({name: summary}))
@@ -230,8 +238,9 @@ def evaluate_run(run_cfg, run_dir: Path, out_dir: Path, cfg_eval, label: str | N
 def evaluate_baseline(cfg_eval, out_dir: Path, label: str | None = None) -> dict:
     """Evaluate a baseline controller (``cfg_eval.controller``) on the eval scene set.
 
-    ``backend``/``task``/``noise`` are the eval config's groups (defaults pymunk, the scene
-    file's task or nav, none); the walk is the backend's preset, as in training.
+    ``backend``/``task``/``noise``/``randomization`` are the eval config's groups (defaults
+    pymunk, the scene file's task or nav, none, none); the walk is the backend's preset, as in
+    training.
     """
     from footsim import config as fconf
     from footsim.env import FootstepEnv
@@ -243,9 +252,10 @@ def evaluate_baseline(cfg_eval, out_dir: Path, label: str | None = None) -> dict
         task = "nav_obstacles" if scenes is not None and any(s.all_obstacles for s in scenes) else "nav"
     backend = cfg_eval.get("backend") or "pymunk"
     noise = cfg_eval.get("noise") or "none"
+    randomization = cfg_eval.get("randomization") or "none"
     video = bool(cfg_eval.get("video", False))
     env = FootstepEnv(backend=fconf.to_plain(backend), task=fconf.to_plain(task), noise=fconf.to_plain(noise),
-                      render_mode="rgb_array" if video else None)
+                      randomization=fconf.to_plain(randomization), render_mode="rgb_array" if video else None)
     try:
         if scenes is None:
             scenes = eval_scenes(cfg_eval, env.sampler)
@@ -260,8 +270,10 @@ def evaluate_baseline(cfg_eval, out_dir: Path, label: str | None = None) -> dict
     summary = summarize(records)
     statuses = [r["planner_status"] for r in records if "planner_status" in r]
     summary["planner_status"] = {k: statuses.count(k) for k in sorted(set(statuses))}
-    name = label or (f"{controller_cfg['name']} baseline ({env.config['backend']['name']}, {env.config['task']['name']}, "
-                     f"noise={env.config['noise'].get('name', '')})")
+    config = env.config
+    conditions = _conditions(config["backend"]["name"], config["task"]["name"], config["noise"].get("name", ""),
+                             (config.get("randomization") or {}).get("name"))
+    name = label or f"{controller_cfg['name']} baseline ({conditions})"
     summary["label"] = name
     write_results(out_dir, records, summary, scenes, plot=bool(cfg_eval.get("plot", True)), title=name)
     from footsim.rl.common import write_json
