@@ -127,12 +127,18 @@ def test_ctrl_c_saves_a_checkpoint_and_exits_130_without_a_traceback(tmp_path):
     import signal
     import time
 
+    # A shell without job control starts background jobs with SIGINT ignored, and a child
+    # inherits that (Python then never raises KeyboardInterrupt): give it the default handler.
     proc = subprocess.Popen(["footsim-train", *TINY, "train.total_timesteps=10000000", f"hydra.run.dir={tmp_path}"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     latest = tmp_path / "checkpoints" / "latest.json"
     deadline = time.monotonic() + 300
     while not latest.exists() and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.2)
+    if not latest.exists():
+        proc.kill()
+        pytest.fail(f"no checkpoint before Ctrl-C:\n{proc.communicate()[1][-3000:]}")
     os.killpg(proc.pid, signal.SIGINT)  # as a terminal's Ctrl-C: the whole process group
     out, err = proc.communicate(timeout=300)
     assert proc.returncode == 130, err[-3000:]
