@@ -167,7 +167,7 @@ def bullet_base_ok(position, quat, linear, angular, com_pos, com_rot, out_of_bou
         origin = position[i] - (l0 * com_pos[0] + l1 * com_pos[1] + l2 * com_pos[2])
         if abs(origin) > out_of_bounds:
             return False
-    l0, l1, l2 = _times_transpose(rows[2], com_rot)
+    # l0, l1, l2: the last row (i = 2), which the tilt needs
     if l2 < 0.0:
         return False
     tilt[0] = _clamped_asin(l1)

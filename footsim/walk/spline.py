@@ -187,12 +187,8 @@ class PiecewiseQuintic:
         # channel's knots just extrapolate its first / last segment).  Within the band a time
         # before a channel's first breakpoint counts exactly the earlier channels' breakpoints,
         # i.e. lands on the channel's first column, so only the upper cap is needed.
-        band = 0.5 * (span - 1.0)
-        self._query_low, self._query_high = t_min - band, t_min + span - band
-        self._offsets = (np.arange(n_channels) * span)[:, None]
-        first_column = (np.arange(n_channels) * n_seg_max)[:, None]
-        self._first_column = first_column
-        self._last_column = first_column + (n_segments - 1)[:, None]
+        self._query_low, self._query_high, offsets, last_column = _query_frame(n_segments, n_seg_max, t_min, span)
+        self._offsets, self._last_column = offsets[:, None], last_column[:, None]
 
     @property
     def n_channels(self) -> int:
@@ -308,24 +304,30 @@ def _segment_tables(data, n_segments, coefficients, segment_start, breaks):
                 p1 - p0, v0, a0, v1, a1, T)
     return 0, t_min, span
 
+@_compiled
+def _query_frame(n_segments, n_seg_max, t_min, span):
+    """The query band ``(low, high)``, each channel's breakpoint shift and its last coefficient
+    column, for tables from :func:`_segment_tables` (see :class:`PiecewiseQuintic`)."""
+    band = 0.5 * (span - 1.0)
+    n_channels = n_segments.shape[0]
+    offsets, last_column = np.empty(n_channels), np.empty(n_channels, dtype=np.int64)
+    for ch in range(n_channels):
+        offsets[ch] = ch * span
+        last_column[ch] = ch * n_seg_max + (n_segments[ch] - 1)
+    return t_min - band, t_min + span - band, offsets, last_column
 
 
 @_compiled
 def _tables_and_positions(data, n_segments, times, out):
-    """:func:`sample_positions`: :func:`_segment_tables` then :func:`_sample_positions`, with
-    :class:`PiecewiseQuintic`'s band and channel offsets computed as it computes them.  Returns
-    the tables' status (0: ``out`` written)."""
+    """:func:`sample_positions`: :func:`_segment_tables`, :func:`_query_frame`, then
+    :func:`_sample_positions`, as :class:`PiecewiseQuintic` does them.  Returns the tables'
+    status (0: ``out`` written)."""
     n_channels, n_seg_max = data.shape[0], data.shape[1] - 1
     coefficients = np.empty((6, n_channels * n_seg_max))
     segment_start, breaks = np.empty(n_channels * n_seg_max), np.empty(n_channels * n_seg_max)
     status, t_min, span = _segment_tables(data, n_segments, coefficients, segment_start, breaks)
     if status != 0:
         return status
-    band = 0.5 * (span - 1.0)
-    offsets, last_column = np.empty(n_channels), np.empty(n_channels, dtype=np.int64)
-    for ch in range(n_channels):
-        offsets[ch] = ch * span
-        last_column[ch] = ch * n_seg_max + (n_segments[ch] - 1)
-    _sample_positions(coefficients, segment_start, breaks, offsets, last_column, t_min - band, t_min + span - band,
-                      times, out)
+    query_low, query_high, offsets, last_column = _query_frame(n_segments, n_seg_max, t_min, span)
+    _sample_positions(coefficients, segment_start, breaks, offsets, last_column, query_low, query_high, times, out)
     return 0
