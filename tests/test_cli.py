@@ -122,14 +122,38 @@ def test_unknown_backend_on_the_command_line_is_named_before_any_work(tmp_path, 
     assert list(tmp_path.iterdir()) == []  # nothing written
 
 
-def test_ctrl_c_saves_a_checkpoint_and_exits_130_without_a_traceback(tmp_path):
+def test_first_ctrl_c_only_requests_a_stop_and_the_second_interrupts():
+    import signal
+
+    from footsim.rl.train import StopOnInterrupt
+
+    before = signal.getsignal(signal.SIGINT)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with StopOnInterrupt() as stop:
+            assert not stop.requested
+            signal.raise_signal(signal.SIGINT)  # no KeyboardInterrupt here
+            assert stop.requested
+            with pytest.raises(KeyboardInterrupt):
+                signal.raise_signal(signal.SIGINT)
+        with StopOnInterrupt() as stop:
+            pass
+        assert not stop.requested and signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
+    finally:
+        signal.signal(signal.SIGINT, before)
+
+
+@pytest.mark.parametrize("vec_env", ["dummy", "subproc"])
+def test_ctrl_c_saves_a_checkpoint_and_exits_130_without_a_traceback(tmp_path, vec_env):
     import os
     import signal
     import time
 
     # A shell without job control starts background jobs with SIGINT ignored, and a child
     # inherits that (Python then never raises KeyboardInterrupt): give it the default handler.
-    proc = subprocess.Popen(["footsim-train", *TINY, "train.total_timesteps=10000000", f"hydra.run.dir={tmp_path}"],
+    # checkpoint_freq=2 saves at almost every step, so the signal often arrives during a save.
+    proc = subprocess.Popen(["footsim-train", *TINY, "train.total_timesteps=10000000", "train.checkpoint_freq=2",
+                             f"train.vec_env={vec_env}", f"hydra.run.dir={tmp_path}"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     latest = tmp_path / "checkpoints" / "latest.json"
@@ -144,7 +168,12 @@ def test_ctrl_c_saves_a_checkpoint_and_exits_130_without_a_traceback(tmp_path):
     assert proc.returncode == 130, err[-3000:]
     assert f"interrupted: checkpoint saved; continue with footsim-train resume={tmp_path}" in out
     assert "Traceback" not in err
-    assert json.loads(latest.read_text())["num_timesteps"] > 0
+    steps = json.loads(latest.read_text())["num_timesteps"]
+    assert steps > 0
+    from stable_baselines3 import PPO
+
+    assert PPO.load(tmp_path / "checkpoints" / "latest.zip", device="cpu").num_timesteps == steps
+    assert not [p.name for p in (tmp_path / "checkpoints").iterdir() if p.name.startswith(".")]  # no temporaries
 
 
 def test_conf_is_found_from_a_built_wheel(tmp_path):

@@ -8,7 +8,8 @@ steps), TensorBoard logs in ``tb/``, and ``eval/`` with the evaluation results.
 
 from __future__ import annotations
 
-import contextlib
+import signal
+import threading
 import time
 from pathlib import Path
 
@@ -23,7 +24,7 @@ LATEST = "latest.zip"
 LATEST_VECNORM = "latest_vecnormalize.pkl"
 
 
-def _env_factory(cfg: DictConfig, rank: int):
+def _env_factory(cfg: DictConfig, rank: int, worker_process: bool = False):
     plain = OmegaConf.to_container(cfg, resolve=True)
 
     def make():
@@ -31,6 +32,8 @@ def _env_factory(cfg: DictConfig, rank: int):
 
         from footsim.env import make_env
 
+        if worker_process:  # a terminal's Ctrl-C reaches the whole group: the trainer alone handles
+            signal.signal(signal.SIGINT, signal.SIG_IGN)  # it and closes its workers afterwards
         return Monitor(make_env(plain))
 
     return make
@@ -54,13 +57,49 @@ def build_vec_env(cfg: DictConfig):
         # MuJoCo worker instead of 268 MB (docs/BENCHMARKS.md).  No effect once a forkserver runs.
         multiprocessing.set_forkserver_preload(
             ["stable_baselines3.common.vec_env", "footsim.env", BACKENDS[cfg.backend.name].target.split(":")[0]])
-    factories = [_env_factory(cfg, i) for i in range(n_envs)]
+    factories = [_env_factory(cfg, i, worker_process=kind == "subproc") for i in range(n_envs)]
     venv = DummyVecEnv(factories) if kind == "dummy" else SubprocVecEnv(factories, start_method="forkserver")
     venv.seed(int(cfg.seed))
     if cfg.agent.normalize_reward or cfg.agent.normalize_obs:
         venv = VecNormalize(venv, norm_obs=bool(cfg.agent.normalize_obs), norm_reward=bool(cfg.agent.normalize_reward),
                             gamma=float(cfg.agent.gamma))
     return venv
+
+
+class StopOnInterrupt:
+    """While active, Ctrl-C only asks training to stop; the loop stops at its next env step.
+
+    Raising KeyboardInterrupt wherever the signal lands could interrupt a checkpoint half
+    written (torch's zip writer then fails).  A second Ctrl-C interrupts at once."""
+
+    def __init__(self):
+        self.requested = False
+        self._previous = None
+
+    def _handle(self, signum, frame):
+        self.requested = True
+        signal.signal(signal.SIGINT, self._previous)
+        print("\ninterrupt: stopping after the current step (Ctrl-C again to abort now)", flush=True)
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():  # signals are the main thread's
+            self._previous = signal.signal(signal.SIGINT, self._handle)
+        return self
+
+    def __exit__(self, *exc):
+        if self._previous is not None and not self.requested:
+            signal.signal(signal.SIGINT, self._previous)
+        return False
+
+
+def _make_stop_callback(stop: StopOnInterrupt):
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class StopWhenRequested(BaseCallback):
+        def _on_step(self) -> bool:
+            return not stop.requested
+
+    return StopWhenRequested()
 
 
 def _make_checkpoint_callback(run_dir: Path, every: int, n_envs: int):
@@ -166,17 +205,17 @@ def train(cfg: DictConfig, run_dir: Path) -> dict:
     if remaining > 0:
         from stable_baselines3.common.callbacks import CallbackList
 
-        callback = CallbackList([_make_checkpoint_callback(run_dir, int(cfg.train.checkpoint_freq), int(cfg.train.n_envs)),
-                                 _make_outcome_callback()])
-        try:
+        with StopOnInterrupt() as stop:
+            callback = CallbackList([_make_checkpoint_callback(run_dir, int(cfg.train.checkpoint_freq),
+                                                               int(cfg.train.n_envs)),
+                                     _make_outcome_callback(), _make_stop_callback(stop)])
             model.learn(total_timesteps=remaining, callback=callback, progress_bar=bool(cfg.train.progress_bar),
                         reset_num_timesteps=resume_dir is None, tb_log_name="ppo")
-        except KeyboardInterrupt:
+        if stop.requested:
             save_checkpoint(model, run_dir)
-            print(f"\ninterrupted: checkpoint saved; continue with footsim-train resume={run_dir}", flush=True)
-            with contextlib.suppress(Exception):  # workers got the same Ctrl-C and may be gone already
-                venv.close()
-            raise SystemExit(130) from None  # the shell's code for Ctrl-C, without a traceback
+            venv.close()
+            print(f"interrupted: checkpoint saved; continue with footsim-train resume={run_dir}", flush=True)
+            raise SystemExit(130)  # the shell's code for Ctrl-C
     wall = time.time() - started
     atomic_save(model.save, run_dir / MODEL_FILE, ".zip")
     if isinstance(model.get_vec_normalize_env(), VecNormalize):
