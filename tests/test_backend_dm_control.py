@@ -301,3 +301,34 @@ def test_many_resets_and_create_close_cycles_do_not_leak(backend):
         b.close()
     grown = _rss_mb() - start
     assert grown < 60.0, f"RSS grew {grown:.1f} MB over 5 create/render/close cycles"
+
+
+def test_headless_gl_opens_at_the_first_frame_not_at_import():
+    """dm_control's EGL backend (53 MB resident) is opened only when something renders; then
+    footsim's frames and dm_control's own rendering both work in the same process."""
+    import subprocess
+    import sys
+
+    code = """
+import sys
+import gymnasium as gym
+import footsim
+EGL = "dm_control._render.pyopengl.egl_renderer"
+env = gym.make("footsim/FootstepNav-v0", backend="dm_control")
+env.reset(seed=0)
+env.step(env.action_space.sample())
+env.close()
+print("egl before rendering:", EGL in sys.modules)
+env = gym.make("footsim/FootstepNav-v0", backend="dm_control", render_mode="rgb_array")
+env.reset(seed=0)
+frame = env.render()
+env.close()
+print("frame:", frame.shape, float(frame.std()) > 1.0, "egl after:", EGL in sys.modules)
+from dm_control import suite
+print("suite frame:", float(suite.load("cartpole", "swingup").physics.render(48, 64).std()) > 1.0)
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         env={**os.environ, "MUJOCO_GL": "egl"}).stdout
+    assert "egl before rendering: False" in out
+    assert "frame: (480, 480, 3) True egl after: True" in out
+    assert "suite frame: True" in out

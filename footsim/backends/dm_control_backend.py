@@ -15,7 +15,8 @@ dm_control's own idiom, driven by the shared 3D driver.
 * **Faults** — dm_control raises ``PhysicsError`` when a step raises a MuJoCo warning
   (bad qacc / qpos / qvel, …); the sim records it and reports it as ``sim_error``, as it does
   for the MuJoCo backend's fatal warning counters and a non-finite state.
-* **Rendering** — ``physics.render(height, width, camera_id="track")`` (EGL headless) from a
+* **Rendering** — ``physics.render(height, width, camera_id="track")`` (EGL headless, opened at
+  the first frame rather than when dm_control is imported: ``_defer_headless_gl_backend``) from a
   camera that follows the torso with the MuJoCo backend's framing; the goal marker (disc and
   heading arrow), believed pose and rays are drawn by a ``scene_callback`` with the MuJoCo
   backend's overlay code.
@@ -26,13 +27,61 @@ walk; the one difference in the model is the MJCF's float round trip through XML
 
 from __future__ import annotations
 
+import importlib
+import logging
 import math
 import os
+import sys
 
 import numpy as np
 
 if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
     os.environ["MUJOCO_GL"] = "egl"  # headless rendering; must be set before dm_control is imported
+
+_HEADLESS_GL = ("egl", "osmesa")
+
+
+def _defer_headless_gl_backend() -> None:
+    """Open dm_control's headless OpenGL backend at its first rendering context, not at import.
+
+    ``dm_control._render`` imports the backend that ``MUJOCO_GL`` names when it is imported, and
+    the EGL one opens a display then: 53 MB resident in every process, rendering or not
+    (docs/BENCHMARKS.md).  Import it with rendering off, then let the first context request
+    re-import it (``importlib.reload``) under the chosen ``MUJOCO_GL``; dm_control looks
+    ``_render.Renderer`` up at that moment, so its own rendering (``physics.render``, suite
+    environments) works as before.  Only for the headless backends (no viewer needs them), and
+    only if nothing imported ``dm_control._render`` yet.
+    """
+    chosen = os.environ.get("MUJOCO_GL", "")
+    if "dm_control._render" in sys.modules or chosen.strip().lower() not in _HEADLESS_GL:
+        return
+    import mujoco  # noqa: F401  (reads MUJOCO_GL too: import it with the real choice first)
+
+    def with_mujoco_gl(value: str, action):
+        os.environ["MUJOCO_GL"] = value
+        try:
+            return action()
+        finally:
+            os.environ["MUJOCO_GL"] = chosen
+
+    absl_log = logging.getLogger("absl")  # would announce "MUJOCO_GL=off", which is not the user's choice
+    level = absl_log.level
+    absl_log.setLevel(logging.WARNING)
+    try:
+        render = with_mujoco_gl("disable", lambda: importlib.import_module("dm_control._render"))
+    except ImportError:
+        return  # dm_control is missing: the import below names the extra to install
+    finally:
+        absl_log.setLevel(level)
+
+    def open_backend(*args, **kwargs):
+        with_mujoco_gl(chosen, lambda: importlib.reload(render))  # replaces this function
+        return render.Renderer(*args, **kwargs)
+
+    render.Renderer = open_backend
+
+
+_defer_headless_gl_backend()
 
 from dm_control import mjcf  # a missing package: backend_class names the extra to install
 from dm_control.rl.control import PhysicsError
