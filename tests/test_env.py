@@ -106,6 +106,42 @@ def test_walking_past_an_obstacle_is_not_a_collision():
         assert not term
 
 
+_WITHOUT_PACKAGES = """
+import importlib.abc, sys
+BLOCKED = set(sys.argv[2].split(","))
+
+class Missing(importlib.abc.MetaPathFinder):  # as if these packages were not installed
+    def find_spec(self, name, path=None, target=None):
+        if name.split(".")[0] in BLOCKED:
+            raise ModuleNotFoundError(f"No module named {name!r}", name=name)
+        return None
+
+sys.meta_path.insert(0, Missing())
+import gymnasium as gym
+import footsim
+try:
+    gym.make("footsim/FootstepNav-v0", backend=sys.argv[1])
+except ImportError as err:
+    print("ImportError:", err)
+"""
+
+
+@pytest.mark.parametrize("backend, missing, extra", [
+    ("mujoco", "mujoco", "mujoco"),
+    ("dm_control", "dm_control", "dm_control"),
+    ("dm_control", "dm_control,mujoco", "dm_control"),
+    ("pybullet", "pybullet", "pybullet"),
+])
+def test_missing_simulator_names_the_extra_to_install(backend, missing, extra):
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", _WITHOUT_PACKAGES, backend, missing], capture_output=True,
+                         text=True, check=True, timeout=300).stdout
+    assert out.startswith("ImportError:") and f"pip install 'footsim[{extra}]'" in out
+    assert f"{missing.split(',')[0]} package" in out.replace("'", "")  # names the missing package
+
+
 def test_bad_inputs_raise_clear_errors():
     env = FootstepEnv()
     env.reset(seed=0)

@@ -55,8 +55,6 @@ def _defer_headless_gl_backend() -> None:
     chosen = os.environ.get("MUJOCO_GL", "")
     if "dm_control._render" in sys.modules or chosen.strip().lower() not in _HEADLESS_GL:
         return
-    import mujoco  # noqa: F401  (reads MUJOCO_GL too: import it with the real choice first)
-
     def with_mujoco_gl(value: str, action):
         os.environ["MUJOCO_GL"] = value
         try:
@@ -68,6 +66,7 @@ def _defer_headless_gl_backend() -> None:
     level = absl_log.level
     absl_log.setLevel(logging.WARNING)
     try:
+        importlib.import_module("mujoco")  # reads MUJOCO_GL too: import it with the real choice first
         render = with_mujoco_gl("disable", lambda: importlib.import_module("dm_control._render"))
     except ImportError:
         return  # dm_control is missing: the import below names the extra to install
