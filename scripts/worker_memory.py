@@ -30,7 +30,7 @@ def make(backend: str):
 
 
 _ONE_ENV = """
-import os, sys, gymnasium as gym, psutil
+import sys, gymnasium as gym, psutil
 import footsim
 env = gym.make("footsim/FootstepNav-v0", backend=sys.argv[1])
 env.reset(seed=0)

@@ -55,6 +55,7 @@ def _defer_headless_gl_backend() -> None:
     chosen = os.environ.get("MUJOCO_GL", "")
     if "dm_control._render" in sys.modules or chosen.strip().lower() not in _HEADLESS_GL:
         return
+
     def with_mujoco_gl(value: str, action):
         os.environ["MUJOCO_GL"] = value
         try:
