@@ -42,8 +42,10 @@ def bench_env2d(steps: int = 20000, repeats: int = 5, wrapped: bool = False) -> 
     variants = [("", make_raw)] + ([(" [gymnasium.make]", make_gym)] if wrapped else [])
     rows = []
     for suffix, make in variants:
-        for label, kwargs in (("pymunk, nav (17-D, no rays)", {}),
-                              ("pymunk, nav_obstacles (53-D, 36 rays)", {"obstacles": True})):
+        for label, kwargs in (
+            ("pymunk, nav (17-D, no rays)", {}),
+            ("pymunk, nav_obstacles (53-D, 36 rays)", {"obstacles": True}),
+        ):
             env = make(**kwargs)
             rates = []
             for r in range(repeats):
@@ -58,9 +60,15 @@ def bench_env2d(steps: int = 20000, repeats: int = 5, wrapped: bool = False) -> 
                 rates.append((steps / (time.process_time() - start_cpu), steps / (time.perf_counter() - start)))
             env.close()
             cpu = [r[0] for r in rates]
-            rows.append({"benchmark": label + suffix, "median env steps/s (CPU time)": statistics.median(cpu),
-                         "min": min(cpu), "max": max(cpu),
-                         "median env steps/s (wall)": statistics.median(r[1] for r in rates)})
+            rows.append(
+                {
+                    "benchmark": label + suffix,
+                    "median env steps/s (CPU time)": statistics.median(cpu),
+                    "min": min(cpu),
+                    "max": max(cpu),
+                    "median env steps/s (wall)": statistics.median(r[1] for r in rates),
+                }
+            )
     return rows
 
 
@@ -92,8 +100,14 @@ def bench_planners(repeats: int = 5) -> list[dict]:
     return planners()
 
 
-BENCHMARKS = {"env2d": bench_env2d, "walk": bench_walk, "mujoco": _bench_3d("mujoco"),
-              "dm_control": _bench_3d("dm_control"), "pybullet": _bench_3d("pybullet"), "planners": bench_planners}
+BENCHMARKS = {
+    "env2d": bench_env2d,
+    "walk": bench_walk,
+    "mujoco": _bench_3d("mujoco"),
+    "dm_control": _bench_3d("dm_control"),
+    "pybullet": _bench_3d("pybullet"),
+    "planners": bench_planners,
+}
 
 
 def _table(rows: list[dict]) -> str:
@@ -107,9 +121,11 @@ def _table(rows: list[dict]) -> str:
 def main(argv: list[str] | None = None) -> None:
     from footsim.tasks.scenes import parse_kv_args
 
-    args = parse_kv_args(sys.argv[1:] if argv is None else argv,
-                         {"what": "env2d,walk", "repeats": "5", "steps": "20000", "wrapped": "false"},
-                         "footsim-bench")
+    args = parse_kv_args(
+        sys.argv[1:] if argv is None else argv,
+        {"what": "env2d,walk", "repeats": "5", "steps": "20000", "wrapped": "false"},
+        "footsim-bench",
+    )
     names = [n for n in args["what"].split(",") if n]
     unknown = [n for n in names if n not in BENCHMARKS]
     if unknown:
@@ -117,8 +133,9 @@ def main(argv: list[str] | None = None) -> None:
     try:
         repeats, steps = int(args["repeats"]), int(args["steps"])
     except ValueError:
-        raise SystemExit(f"footsim-bench: repeats and steps must be integers, got repeats={args['repeats']} "
-                         f"steps={args['steps']}") from None
+        raise SystemExit(
+            f"footsim-bench: repeats and steps must be integers, got repeats={args['repeats']} steps={args['steps']}"
+        ) from None
     if repeats < 1 or steps < 1:
         raise SystemExit(f"footsim-bench: repeats and steps must be >= 1, got repeats={repeats} steps={steps}")
     print(f"machine: {_machine()}; repeats: {repeats} (median reported)\n")

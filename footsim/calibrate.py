@@ -42,8 +42,14 @@ FALL_FEATURES = tuple(f"abs_a{i}" for i in range(6))
 def features(displacement, names=FEATURES) -> np.ndarray:
     """Feature vector(s) of predicted displacement(s) ``(..., 3)``."""
     d = np.asarray(displacement, dtype=float)
-    table = {"dx": d[..., 0], "dy": d[..., 1], "dtheta": d[..., 2],
-             "abs_dx": np.abs(d[..., 0]), "abs_dy": np.abs(d[..., 1]), "abs_dtheta": np.abs(d[..., 2])}
+    table = {
+        "dx": d[..., 0],
+        "dy": d[..., 1],
+        "dtheta": d[..., 2],
+        "abs_dx": np.abs(d[..., 0]),
+        "abs_dy": np.abs(d[..., 1]),
+        "abs_dtheta": np.abs(d[..., 2]),
+    }
     return np.stack([table[n] for n in names], axis=-1)
 
 
@@ -64,7 +70,7 @@ class ExecutionModel:
             raise ValueError(f"{where}: {msg}")
 
         if not isinstance(data, dict) or data.get("format") != FORMAT:
-            fail(f"not a footsim execution model (expected \"format\": \"{FORMAT}\", made by footsim-calibrate)")
+            fail(f'not a footsim execution model (expected "format": "{FORMAT}", made by footsim-calibrate)')
         if int(data.get("version", 0)) != VERSION:
             fail(f"version {data.get('version')!r} is not supported (expected {VERSION})")
         names = tuple(data.get("features", FEATURES))
@@ -82,8 +88,10 @@ class ExecutionModel:
         except (TypeError, ValueError) as err:
             fail(f"coef/intercept/residual_std must be numbers ({err})")
         if coef.shape != (3, len(names)) or intercept.shape != (3,) or std.shape != (3,):
-            fail(f"coef must be 3 x {len(names)} (outputs x features), intercept and residual_std 3 values; "
-                 f"got {coef.shape}, {intercept.shape}, {std.shape}")
+            fail(
+                f"coef must be 3 x {len(names)} (outputs x features), intercept and residual_std 3 values; "
+                f"got {coef.shape}, {intercept.shape}, {std.shape}"
+            )
         if not (np.isfinite(coef).all() and np.isfinite(intercept).all() and np.isfinite(std).all()) or (std < 0).any():
             fail("coefficients must be finite and residual_std >= 0")
         self.names, self.coef, self.intercept, self.std = names, coef, intercept, std
@@ -101,7 +109,7 @@ class ExecutionModel:
         self.data = data
 
     @classmethod
-    def load(cls, path, noise: bool = True) -> "ExecutionModel":
+    def load(cls, path, noise: bool = True) -> ExecutionModel:
         path = Path(path).expanduser()
         try:
             data = json.loads(path.read_text())
@@ -135,8 +143,9 @@ def _draw(rng: np.random.Generator, scale: float) -> np.ndarray:
 
 
 # -- data ---------------------------------------------------------------------------------------
-def collect(backend, n_steps: int, seed: int = 0, scale: float = 1.0, repeat: float = 0.9,
-            progress: bool = True) -> dict[str, np.ndarray]:
+def collect(
+    backend, n_steps: int, seed: int = 0, scale: float = 1.0, repeat: float = 0.9, progress: bool = True
+) -> dict[str, np.ndarray]:
     """Random double steps on ``backend``; arrays ``action (n,6), predicted (n,3), executed (n,3),
     fell (n,)`` (``executed`` is NaN where the robot fell or the sim failed)."""
     from footsim.geometry import Pose2D
@@ -165,8 +174,11 @@ def collect(backend, n_steps: int, seed: int = 0, scale: float = 1.0, repeat: fl
         elif rng.random() >= repeat:
             action = _draw(rng, scale)
         result = backend.execute(DoubleStep.from_action(action, robot.step_limits))
-        after = result.feet if result.feet is not None else geometry.execute(
-            feet, DoubleStep.from_action(action, robot.step_limits))[1]
+        after = (
+            result.feet
+            if result.feet is not None
+            else geometry.execute(feet, DoubleStep.from_action(action, robot.step_limits))[1]
+        )
         predicted = feet.nav_pose.relative(after.nav_pose)
         bad = result.fell or result.sim_error is not None or not all(math.isfinite(v) for v in result.pose)
         executed = (math.nan,) * 3 if bad else tuple(pose.relative(result.pose))
@@ -190,9 +202,9 @@ def fit_linear(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np
     solution, *_ = np.linalg.lstsq(design, y, rcond=None)
     residual = y - design @ solution
     dof = max(n - p - 1, 1)
-    std = np.sqrt((residual ** 2).sum(axis=0) / dof)
+    std = np.sqrt((residual**2).sum(axis=0) / dof)
     total = ((y - y.mean(axis=0)) ** 2).sum(axis=0)
-    r2 = np.where(total > 0, 1.0 - (residual ** 2).sum(axis=0) / np.where(total > 0, total, 1.0), 1.0)
+    r2 = np.where(total > 0, 1.0 - (residual**2).sum(axis=0) / np.where(total > 0, total, 1.0), 1.0)
     return solution[:p].T, solution[p], std, r2
 
 
@@ -233,12 +245,18 @@ def fit(data: dict[str, np.ndarray], meta: dict | None = None, names=DEFAULT_FEA
     # how far the uncorrected 2D prediction is from the executed displacement, per output
     raw = data["executed"][ok] - data["predicted"][ok]
     return {
-        "format": FORMAT, "version": VERSION,
-        "features": list(names), "outputs": list(OUTPUTS),
-        "coef": coef.tolist(), "intercept": intercept.tolist(), "residual_std": std.tolist(), "r2": r2.tolist(),
+        "format": FORMAT,
+        "version": VERSION,
+        "features": list(names),
+        "outputs": list(OUTPUTS),
+        "coef": coef.tolist(),
+        "intercept": intercept.tolist(),
+        "residual_std": std.tolist(),
+        "r2": r2.tolist(),
         "fall": fall,
-        "n_samples": int(len(fell)), "n_falls": int(fell.sum()),
-        "uncorrected_rmse": np.sqrt((raw ** 2).mean(axis=0)).tolist(),
+        "n_samples": int(len(fell)),
+        "n_falls": int(fell.sum()),
+        "uncorrected_rmse": np.sqrt((raw**2).mean(axis=0)).tolist(),
         "meta": meta or {},
     }
 
@@ -281,27 +299,45 @@ def consistency(model_path: str, backend3d: str = "mujoco", seed: int = 0) -> tu
                     dyaw.append(abs(ra["yaw"] - ref[s.name]["yaw"]))
                     dp.append(math.hypot(a.x - b.x, a.y - b.y))
                     dy.append(abs(wrap_angle(a.theta - b.theta)))
-                rows.append({"pair": f"{label} – {backend3d}", "sequences": "cut at 3D fall" if cut else "full",
-                             "pos_mean": float(np.mean(dp)), "pos_max": float(np.max(dp)),
-                             "yaw_mean": float(np.mean(dy)), "yaw_max": float(np.max(dy)),
-                             "turn_mean": float(np.mean(dyaw)), "turn_max": float(np.max(dyaw))})
+                rows.append(
+                    {
+                        "pair": f"{label} – {backend3d}",
+                        "sequences": "cut at 3D fall" if cut else "full",
+                        "pos_mean": float(np.mean(dp)),
+                        "pos_max": float(np.max(dp)),
+                        "yaw_mean": float(np.mean(dy)),
+                        "yaw_max": float(np.max(dy)),
+                        "turn_mean": float(np.mean(dyaw)),
+                        "turn_max": float(np.max(dyaw)),
+                    }
+                )
         finally:
             backend.close()
-    lines = ["| pair | sequences | position diff mean [m] | max [m] | yaw diff mean [rad] | max [rad] "
-             "| total turn diff mean [rad] | max [rad] |", "|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| pair | sequences | position diff mean [m] | max [m] | yaw diff mean [rad] | max [rad] "
+        "| total turn diff mean [rad] | max [rad] |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for r in sorted(rows, key=lambda r: r["sequences"] != "full"):
-        lines.append(f"| {r['pair']} | {r['sequences']} | {r['pos_mean']:.3f} | {r['pos_max']:.3f} | "
-                     f"{r['yaw_mean']:.3f} | {r['yaw_max']:.3f} | {r['turn_mean']:.3f} | {r['turn_max']:.3f} |")
-    falls = [f"{s.name} ({ref[s.name]['steps']}/{len(s.actions)})" for s in sequences
-             if ref[s.name]["fell"] or ref[s.name]["sim_error"]]
+        lines.append(
+            f"| {r['pair']} | {r['sequences']} | {r['pos_mean']:.3f} | {r['pos_max']:.3f} | "
+            f"{r['yaw_mean']:.3f} | {r['yaw_max']:.3f} | {r['turn_mean']:.3f} | {r['turn_max']:.3f} |"
+        )
+    falls = [
+        f"{s.name} ({ref[s.name]['steps']}/{len(s.actions)})"
+        for s in sequences
+        if ref[s.name]["fell"] or ref[s.name]["sim_error"]
+    ]
     lines += ["", f"{backend3d} fell in: {', '.join(falls) if falls else 'none'}"]
     return rows, "\n".join(lines)
 
 
 # -- command ------------------------------------------------------------------------------------
-USAGE = ("usage: footsim-calibrate backend=mujoco [n_steps=800] [seed=0] [scale=1.0] [repeat=0.9] "
-         "[features=dx,dy,dtheta] out=FILE.json\n"
-         "       footsim-calibrate compare=FILE.json [backend=mujoco] [out=FILE.md]")
+USAGE = (
+    "usage: footsim-calibrate backend=mujoco [n_steps=800] [seed=0] [scale=1.0] [repeat=0.9] "
+    "[features=dx,dy,dtheta] out=FILE.json\n"
+    "       footsim-calibrate compare=FILE.json [backend=mujoco] [out=FILE.md]"
+)
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -309,9 +345,20 @@ def main(argv: list[str] | None = None) -> None:
     from footsim.rl.common import write_json
     from footsim.tasks.scenes import atomic_write_text, parse_kv_args
 
-    args = parse_kv_args(sys.argv[1:] if argv is None else argv,
-                         {"backend": "mujoco", "n_steps": "800", "seed": "0", "scale": "1.0", "repeat": "0.9",
-                          "features": ",".join(DEFAULT_FEATURES), "out": "", "compare": ""}, "footsim-calibrate")
+    args = parse_kv_args(
+        sys.argv[1:] if argv is None else argv,
+        {
+            "backend": "mujoco",
+            "n_steps": "800",
+            "seed": "0",
+            "scale": "1.0",
+            "repeat": "0.9",
+            "features": ",".join(DEFAULT_FEATURES),
+            "out": "",
+            "compare": "",
+        },
+        "footsim-calibrate",
+    )
     require_known_backends([args["backend"]], "footsim-calibrate")
     if args["compare"]:
         _, table = consistency(args["compare"], args["backend"], int(args["seed"]))
@@ -338,12 +385,17 @@ def main(argv: list[str] | None = None) -> None:
     finally:
         backend.close()
     names = [f for f in args["features"].split(",") if f]
-    model = fit(data, meta={"backend": args["backend"], "n_steps": n_steps, "seed": seed, "scale": scale,
-                            "repeat": repeat}, names=names)
+    model = fit(
+        data,
+        meta={"backend": args["backend"], "n_steps": n_steps, "seed": seed, "scale": scale, "repeat": repeat},
+        names=names,
+    )
     write_json(args["out"], model)
     print(f"{model['n_samples']} double steps, {model['n_falls']} falls on {args['backend']}")
     for k, name in enumerate(OUTPUTS):
         terms = " ".join(f"{c:+.3f}·{f}" for c, f in zip(model["coef"][k], names))
-        print(f"  {name} = {terms} {model['intercept'][k]:+.4f}   σ={model['residual_std'][k]:.4f}  "
-              f"R²={model['r2'][k]:.3f}  (uncorrected 2D RMSE {model['uncorrected_rmse'][k]:.4f})")
+        print(
+            f"  {name} = {terms} {model['intercept'][k]:+.4f}   σ={model['residual_std'][k]:.4f}  "
+            f"R²={model['r2'][k]:.3f}  (uncorrected 2D RMSE {model['uncorrected_rmse'][k]:.4f})"
+        )
     print(f"execution model written to {args['out']}")

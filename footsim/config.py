@@ -8,16 +8,23 @@ the same preset names work inside and outside a Hydra app.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 
 _PACKAGE_DIR = Path(__file__).resolve().parent
 
 #: Preset used for each group when nothing is given (dict overrides merge on top of it).
-GROUP_DEFAULTS = {"backend": "pymunk", "task": "nav", "noise": "none", "robot": "wolfgang", "walk": "default",
-                  "randomization": "none"}
+GROUP_DEFAULTS = {
+    "backend": "pymunk",
+    "task": "nav",
+    "noise": "none",
+    "robot": "wolfgang",
+    "walk": "default",
+    "randomization": "none",
+}
 
 
 def conf_dir() -> Path:
@@ -63,10 +70,15 @@ def _merge_group_defaults(group: str, name: str, data: DictConfig) -> DictConfig
     if "defaults" not in data:
         return data
     entries = list(data.pop("defaults"))
-    if not all(isinstance(e, str) for e in entries) or entries.count("_self_") > 1 or (
-            "_self_" in entries and entries[-1] != "_self_"):
-        raise ValueError(f"{group} preset {name!r}: defaults must be preset names of the same group, "
-                         f"optionally ending with _self_; got {entries}")
+    if (
+        not all(isinstance(e, str) for e in entries)
+        or entries.count("_self_") > 1
+        or ("_self_" in entries and entries[-1] != "_self_")
+    ):
+        raise ValueError(
+            f"{group} preset {name!r}: defaults must be preset names of the same group, "
+            f"optionally ending with _self_; got {entries}"
+        )
     merged = OmegaConf.create({})
     for entry in entries:
         if entry != "_self_":
@@ -98,12 +110,28 @@ def build_task(task_cfg: Mapping):
     if "success_angle_deg" in cfg:
         cfg["success_angle"] = math.radians(_number(cfg, "success_angle_deg", "task"))
         cfg.pop("success_angle_deg")
-    known = {"max_steps", "success_distance", "success_angle", "distance_scale", "n_rays", "ray_range",
-             "ray_scale", "reward_weights", "observe_imu", "imu_scale", "stability_scale", "path_hint",
-             "path_hint_lookahead", "path_hint_clearance", "success_bonus"}
+    known = {
+        "max_steps",
+        "success_distance",
+        "success_angle",
+        "distance_scale",
+        "n_rays",
+        "ray_range",
+        "ray_scale",
+        "reward_weights",
+        "observe_imu",
+        "imu_scale",
+        "stability_scale",
+        "path_hint",
+        "path_hint_lookahead",
+        "path_hint_clearance",
+        "success_bonus",
+    }
     unknown = sorted(set(cfg) - known)
     if unknown:
-        raise ValueError(f"task: unknown key(s) {unknown}; valid: {sorted(known | {'name', 'obstacles', 'scenes', 'success_angle_deg'})}")
+        raise ValueError(
+            f"task: unknown key(s) {unknown}; valid: {sorted(known | {'name', 'obstacles', 'scenes', 'success_angle_deg'})}"
+        )
     for key in ("observe_imu", "path_hint"):
         if key in cfg and not isinstance(cfg[key], bool):
             raise ValueError(f"task.{key} must be true or false, got {cfg[key]!r}")
@@ -114,7 +142,9 @@ def build_task(task_cfg: Mapping):
         if key in cfg:
             cfg[key] = int(_number(cfg, key, "task"))
     if "reward_weights" in cfg:
-        cfg["reward_weights"] = {k: _number(cfg["reward_weights"], k, "task.reward_weights") for k in cfg["reward_weights"]}
+        cfg["reward_weights"] = {
+            k: _number(cfg["reward_weights"], k, "task.reward_weights") for k in cfg["reward_weights"]
+        }
     sampler_fields = set(SceneSampler.__dataclass_fields__) - {"obstacles"}
     unknown = sorted(set(scenes) - sampler_fields)
     if unknown:

@@ -7,7 +7,8 @@ One env step is one double step: action (6-D, [-1, 1]) → ``DoubleStep`` → ba
 from __future__ import annotations
 
 import math
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -150,8 +151,11 @@ class FootstepEnv(gym.Env):
         raw = self.np_random.bit_generator.random_raw
         self._noise_rng = DeferredGenerator(raw() >> 1)
         backend_seed = raw() >> 1
-        backend_rng = (DeferredGenerator(backend_seed) if getattr(self.backend, "deferred_rng", False)
-                       else np.random.default_rng(backend_seed))
+        backend_rng = (
+            DeferredGenerator(backend_seed)
+            if getattr(self.backend, "deferred_rng", False)
+            else np.random.default_rng(backend_seed)
+        )
         self._random_rng = DeferredGenerator(raw() >> 1)
         self._randomization = {}
         if self.randomizer.active:
@@ -167,8 +171,9 @@ class FootstepEnv(gym.Env):
         self._believed = self.noise.believe(self._pose, self._noise_rng)
         self._path_hint = nav.PathHint(self.scene, self._pose, self.task) if self.task.path_hint else None
         self._arrays = nav.scene_arrays(self.scene)  # the obstacles for the compiled kernels, once per episode
-        obs = nav.observation(self._believed, self.scene, self._prev_actions, self.task, None, self._tilt,
-                              self._hint(), self._arrays)
+        obs = nav.observation(
+            self._believed, self.scene, self._prev_actions, self.task, None, self._tilt, self._hint(), self._arrays
+        )
         return obs, self._info({})
 
     def step(self, action):
@@ -197,8 +202,9 @@ class FootstepEnv(gym.Env):
         if task.uses_tilt:  # 3D options: IMU in the observation, stability in the reward
             max_tilt = result.max_tilt
             self._tilt = (*result.tilt, max_tilt)
-        terms = nav.reward_terms(self._pose, scene, action, self._prev_actions[0], features, max_tilt,
-                                 task.stability_scale, self._arrays)
+        terms = nav.reward_terms(
+            self._pose, scene, action, self._prev_actions[0], features, max_tilt, task.stability_scale, self._arrays
+        )
         reward = nav.weighted_reward(terms, task.reward_weights)
 
         if result.sim_error is not None:
@@ -217,9 +223,16 @@ class FootstepEnv(gym.Env):
 
         self._prev_actions = (action, self._prev_actions[0])
         self._believed = self.noise.believe(self._pose, self._noise_rng)
-        obs = nav.observation(self._believed, scene, self._prev_actions, task,
-                              features if self._believed is self._pose else None, self._tilt, self._hint(),
-                              self._arrays)
+        obs = nav.observation(
+            self._believed,
+            scene,
+            self._prev_actions,
+            task,
+            features if self._believed is self._pose else None,
+            self._tilt,
+            self._hint(),
+            self._arrays,
+        )
         info = self._info(terms, result)
         return obs, float(reward), terminated, truncated, info
 
@@ -232,7 +245,9 @@ class FootstepEnv(gym.Env):
             angles = self._believed.theta + np.arange(self.task.n_rays) * (2 * math.pi / self.task.n_rays)
             rays = np.stack([self._believed.x + dists * np.cos(angles), self._believed.y + dists * np.sin(angles)], 1)
         overlay = RenderOverlay(
-            goal=self.scene.goal, ray_endpoints=rays, believed=self._believed,
+            goal=self.scene.goal,
+            ray_endpoints=rays,
+            believed=self._believed,
             reached=nav.is_success(self._pose, self.scene.goal, self.task),
         )
         return self.backend.render(overlay)
@@ -249,8 +264,12 @@ class FootstepEnv(gym.Env):
         executed = None if result is None else result.executed
         # one array for the poses (and the executed action), handed out as views: numpy's
         # per-array cost is a visible share of a 2D step
-        values = np.array((*self._pose, *self._believed) if executed is None
-                          else (*self._pose, *self._believed, *executed[0], *executed[1]), dtype=float)
+        values = np.array(
+            (*self._pose, *self._believed)
+            if executed is None
+            else (*self._pose, *self._believed, *executed[0], *executed[1]),
+            dtype=float,
+        )
         info = {
             "pose": values[:3],
             "pose_estimate": values[3:6],
@@ -274,6 +293,12 @@ def make_env(cfg, scenes: list[Scene] | None = None, render_mode: str | None = N
     """Build an env from a composed Hydra config (groups ``backend task noise robot walk``)."""
     plain = fconf.to_plain(cfg)
     return FootstepEnv(
-        backend=plain["backend"], task=plain["task"], noise=plain["noise"], robot=plain["robot"],
-        walk=plain["walk"], randomization=plain.get("randomization", "none"), scenes=scenes, render_mode=render_mode,
+        backend=plain["backend"],
+        task=plain["task"],
+        noise=plain["noise"],
+        robot=plain["robot"],
+        walk=plain["walk"],
+        randomization=plain.get("randomization", "none"),
+        scenes=scenes,
+        render_mode=render_mode,
     )

@@ -38,11 +38,11 @@ class Pose2D(NamedTuple):
     theta: float = 0.0
 
     @classmethod
-    def of(cls, x: float, y: float, theta: float) -> "Pose2D":
+    def of(cls, x: float, y: float, theta: float) -> Pose2D:
         """Build a pose with theta wrapped."""
         return cls(float(x), float(y), wrap_angle(float(theta)))
 
-    def compose(self, other: "Pose2D") -> "Pose2D":
+    def compose(self, other: Pose2D) -> Pose2D:
         """``self ∘ other``: ``other`` expressed in this pose's frame, returned in the world frame."""
         c, s = math.cos(self.theta), math.sin(self.theta)
         return Pose2D(
@@ -51,11 +51,11 @@ class Pose2D(NamedTuple):
             wrap_angle(self.theta + other.theta),
         )
 
-    def inverse(self) -> "Pose2D":
+    def inverse(self) -> Pose2D:
         c, s = math.cos(self.theta), math.sin(self.theta)
         return Pose2D(-c * self.x - s * self.y, s * self.x - c * self.y, wrap_angle(-self.theta))
 
-    def relative(self, other: "Pose2D") -> "Pose2D":
+    def relative(self, other: Pose2D) -> Pose2D:
         """``other`` expressed in this pose's frame: ``self.inverse() ∘ other``."""
         dx, dy = other.x - self.x, other.y - self.y
         c, s = math.cos(self.theta), math.sin(self.theta)
@@ -65,7 +65,7 @@ class Pose2D(NamedTuple):
         c, s = math.cos(self.theta), math.sin(self.theta)
         return self.x + c * px - s * py, self.y + s * px + c * py
 
-    def distance_to(self, other: "Pose2D") -> float:
+    def distance_to(self, other: Pose2D) -> float:
         return math.hypot(other.x - self.x, other.y - self.y)
 
     def as_array(self) -> np.ndarray:

@@ -36,9 +36,12 @@ def _compiled(func):
         return njit(cache=True)(func)
     except RuntimeError as err:  # numba: "cannot cache function ...: no locator available ..."
         if not _uncached:
-            warnings.warn(f"footsim.kernels2d: {err}; compiling without a cache "
-                          "(set NUMBA_CACHE_DIR to a writable directory to keep the compiled code)",
-                          RuntimeWarning, stacklevel=2)
+            warnings.warn(
+                f"footsim.kernels2d: {err}; compiling without a cache "
+                "(set NUMBA_CACHE_DIR to a writable directory to keep the compiled code)",
+                RuntimeWarning,
+                stacklevel=2,
+            )
         _uncached.append(func.__name__)
         return njit(func)
 
@@ -362,6 +365,7 @@ def execute_double_step(sx, sy, st, lx, ly, lt, x1, y1, t1, x2, y2, t2, g, circl
     """
     placed = place_double_step(lx, ly, lt, x1, y1, t1, x2, y2, t2, g)
     rx, ry, rt, ex, ey, et = placed[0], placed[1], placed[2], placed[7], placed[8], placed[9]
-    collided = circles.shape[0] > 0 and double_step_collides(circles, dims, sx, sy, st, rx, ry, rt, lx, ly, lt,
-                                                             ex, ey, et)
+    collided = circles.shape[0] > 0 and double_step_collides(
+        circles, dims, sx, sy, st, rx, ry, rt, lx, ly, lt, ex, ey, et
+    )
     return placed + (collided, 0.5 * (ex + rx), 0.5 * (ey + ry), _mean_heading(et, rt))

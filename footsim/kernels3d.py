@@ -130,9 +130,11 @@ def quick_status(root_q, qpos, qvel, warnings, warning_ids, out_of_bounds, tilt)
 @_compiled
 def _times_transpose(row, m):
     """The 3-vector ``row`` times ``m``ᵀ (3×3), as three floats."""
-    return (row[0] * m[0, 0] + row[1] * m[0, 1] + row[2] * m[0, 2],
-            row[0] * m[1, 0] + row[1] * m[1, 1] + row[2] * m[1, 2],
-            row[0] * m[2, 0] + row[1] * m[2, 1] + row[2] * m[2, 2])
+    return (
+        row[0] * m[0, 0] + row[1] * m[0, 1] + row[2] * m[0, 2],
+        row[0] * m[1, 0] + row[1] * m[1, 1] + row[2] * m[1, 2],
+        row[0] * m[2, 0] + row[1] * m[2, 1] + row[2] * m[2, 2],
+    )
 
 
 @_compiled
@@ -161,7 +163,11 @@ def bullet_base_ok(position, quat, linear, angular, com_pos, com_rot, out_of_bou
     wx, wy, wz = w * xs, w * ys, w * zs
     xx, xy, xz = x * xs, x * ys, x * zs
     yy, yz, zz = y * ys, y * zs, z * zs
-    rows = ((1.0 - (yy + zz), xy - wz, xz + wy), (xy + wz, 1.0 - (xx + zz), yz - wx), (xz - wy, yz + wx, 1.0 - (xx + yy)))
+    rows = (
+        (1.0 - (yy + zz), xy - wz, xz + wy),
+        (xy + wz, 1.0 - (xx + zz), yz - wx),
+        (xz - wy, yz + wx, 1.0 - (xx + yy)),
+    )
     for i in range(3):  # row i of the link frame's rotation, r @ com_rot.T, then its origin
         l0, l1, l2 = _times_transpose(rows[i], com_rot)
         origin = position[i] - (l0 * com_pos[0] + l1 * com_pos[1] + l2 * com_pos[2])
@@ -186,8 +192,8 @@ def bullet_control_state(targets, trunk, gains, com_rows):
     state = np.zeros((n + 4, 14))
     state[:n, :12] = targets
     state[:n, 12:14] = trunk[:, 3:5]
-    state[n:n + 2, :12] = gains
-    state[n + 2:n + 4, :3] = com_rows
+    state[n : n + 2, :12] = gains
+    state[n + 2 : n + 4, :3] = com_rows
     return state
 
 
@@ -213,9 +219,17 @@ def bullet_control_tick(state, k, quat):
     s_roll = r0 * state[n + 3, 0] + r1 * state[n + 3, 1] + r2 * state[n + 3, 2]
     re = _clamped_asin(s_roll) - state[k, 12]
     pe = _clamped_asin(s_pitch) - state[k, 13]
-    return (_joint_command(state, k, 0, re, pe), _joint_command(state, k, 1, re, pe),
-            _joint_command(state, k, 2, re, pe), _joint_command(state, k, 3, re, pe),
-            _joint_command(state, k, 4, re, pe), _joint_command(state, k, 5, re, pe),
-            _joint_command(state, k, 6, re, pe), _joint_command(state, k, 7, re, pe),
-            _joint_command(state, k, 8, re, pe), _joint_command(state, k, 9, re, pe),
-            _joint_command(state, k, 10, re, pe), _joint_command(state, k, 11, re, pe))
+    return (
+        _joint_command(state, k, 0, re, pe),
+        _joint_command(state, k, 1, re, pe),
+        _joint_command(state, k, 2, re, pe),
+        _joint_command(state, k, 3, re, pe),
+        _joint_command(state, k, 4, re, pe),
+        _joint_command(state, k, 5, re, pe),
+        _joint_command(state, k, 6, re, pe),
+        _joint_command(state, k, 7, re, pe),
+        _joint_command(state, k, 8, re, pe),
+        _joint_command(state, k, 9, re, pe),
+        _joint_command(state, k, 10, re, pe),
+        _joint_command(state, k, 11, re, pe),
+    )

@@ -19,8 +19,8 @@ at start, naming the term and the backend.  The values drawn are reported in
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Mapping
 
 import numpy as np
 
@@ -57,7 +57,7 @@ class TermSpec:
     when: str = "episode"
 
     @classmethod
-    def from_mapping(cls, name: str, cfg: Mapping, where: str) -> "TermSpec":
+    def from_mapping(cls, name: str, cfg: Mapping, where: str) -> TermSpec:
         if name not in TERMS:
             raise ValueError(f"{where}.{name}: unknown randomization term; known terms: {', '.join(TERMS)}")
         cfg = dict(cfg)
@@ -65,15 +65,22 @@ class TermSpec:
         when = cfg.pop("when", "episode")
         if when not in ("episode", "step"):
             raise ValueError(f"{where}.{name}.when must be 'episode' or 'step', got {when!r}")
-        keys = {"uniform": ("low", "high"), "loguniform": ("low", "high"), "normal": ("mean", "std"),
-                "constant": ("value",)}
+        keys = {
+            "uniform": ("low", "high"),
+            "loguniform": ("low", "high"),
+            "normal": ("mean", "std"),
+            "constant": ("value",),
+        }
         if dist not in keys:
             raise ValueError(f"{where}.{name}.dist must be one of {sorted(keys)}, got {dist!r}")
         missing = [k for k in keys[dist] if k not in cfg]
         extra = sorted(set(cfg) - set(keys[dist]))
         if missing or extra:
-            raise ValueError(f"{where}.{name}: a {dist} distribution takes {list(keys[dist])}"
-                             + (f"; missing {missing}" if missing else "") + (f"; unexpected {extra}" if extra else ""))
+            raise ValueError(
+                f"{where}.{name}: a {dist} distribution takes {list(keys[dist])}"
+                + (f"; missing {missing}" if missing else "")
+                + (f"; unexpected {extra}" if extra else "")
+            )
         params = []
         for k in keys[dist]:
             value = cfg[k]

@@ -27,8 +27,18 @@ FAILED_FILE = "FAILED.json"
 SUMMARY_FILE = Path("eval") / "summary.json"
 USAGE = "usage: footsim-sweep-summary dir=MULTIRUN_DIR [out=PREFIX]"
 # eval/summary.json keys shown first, in this order; other scalar keys follow alphabetically
-METRIC_ORDER = ("episodes", "success", "timeout", "fall", "collision", "sim_error", "success_time_mean",
-                "success_time_std", "success_steps_mean", "success_steps_std")
+METRIC_ORDER = (
+    "episodes",
+    "success",
+    "timeout",
+    "fall",
+    "collision",
+    "sim_error",
+    "success_time_mean",
+    "success_time_std",
+    "success_steps_mean",
+    "success_steps_std",
+)
 
 
 # -- failure marker ---------------------------------------------------------------------------
@@ -63,8 +73,12 @@ class JobStatusCallback(_HydraCallback):
 
         write_json(marker, record)
         if _multirun(job_return):
-            print(f"footsim: job {record['job_num']} ({' '.join(record['overrides'])}) failed: {record['error']} "
-                  f"(details: {marker}); the other jobs go on", file=sys.stderr, flush=True)
+            print(
+                f"footsim: job {record['job_num']} ({' '.join(record['overrides'])}) failed: {record['error']} "
+                f"(details: {marker}); the other jobs go on",
+                file=sys.stderr,
+                flush=True,
+            )
 
 
 def _multirun(job_return) -> bool:
@@ -113,8 +127,13 @@ def collect(sweep_dir: str | Path) -> list[dict[str, Any]]:
     sweep_dir = Path(sweep_dir)
     rows = []
     for job in find_jobs(sweep_dir):
-        row: dict[str, Any] = {"job": str(job.relative_to(sweep_dir)) or ".", "status": "ok", "error": "",
-                               "overrides": _read_overrides(job), "metrics": {}}
+        row: dict[str, Any] = {
+            "job": str(job.relative_to(sweep_dir)) or ".",
+            "status": "ok",
+            "error": "",
+            "overrides": _read_overrides(job),
+            "metrics": {},
+        }
         if (job / FAILED_FILE).is_file():
             row["status"] = "failed"
             try:
@@ -157,16 +176,26 @@ def to_csv(rows: list[dict]) -> str:
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(["job", "status", *override_keys, *metric_keys, "error"])
     for row in rows:
-        writer.writerow([row["job"], row["status"], *(row["overrides"].get(k, "") for k in override_keys),
-                         *(row["metrics"].get(k, "") for k in metric_keys), row["error"]])
+        writer.writerow(
+            [
+                row["job"],
+                row["status"],
+                *(row["overrides"].get(k, "") for k in override_keys),
+                *(row["metrics"].get(k, "") for k in metric_keys),
+                row["error"],
+            ]
+        )
     return buf.getvalue()
 
 
 def to_markdown(rows: list[dict], title: str = "") -> str:
     """Markdown table; overrides shared by every job are listed above it instead of as columns."""
     override_keys, metric_keys = _columns(rows)
-    common = {k: rows[0]["overrides"].get(k) for k in override_keys
-              if all(k in r["overrides"] and r["overrides"][k] == rows[0]["overrides"][k] for r in rows)}
+    common = {
+        k: rows[0]["overrides"].get(k)
+        for k in override_keys
+        if all(k in r["overrides"] and r["overrides"][k] == rows[0]["overrides"][k] for r in rows)
+    }
     varying = [k for k in override_keys if k not in common] if len(rows) > 1 else []
     if len(rows) == 1:
         common = dict(rows[0]["overrides"])
@@ -178,8 +207,13 @@ def to_markdown(rows: list[dict], title: str = "") -> str:
     header = ["job", "status", *varying, *metric_keys, "error"]
     lines += ["", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for row in rows:
-        cells = [row["job"], row["status"], *(_fmt(row["overrides"].get(k)) for k in varying),
-                 *(_fmt(row["metrics"].get(k)) for k in metric_keys), row["error"]]
+        cells = [
+            row["job"],
+            row["status"],
+            *(_fmt(row["overrides"].get(k)) for k in varying),
+            *(_fmt(row["metrics"].get(k)) for k in metric_keys),
+            row["error"],
+        ]
         lines.append("| " + " | ".join(c.replace("|", "\\|").replace("\n", " ") for c in cells) + " |")
     return "\n".join(lines) + "\n"
 

@@ -72,8 +72,14 @@ def run_sequence(backend, sequence: Sequence, seed: int = 0) -> dict:
         end = backend.planar_pose()
         total_yaw += wrap_angle(end.theta - pose.theta)
         pose = end
-    return {"pose": pose, "fell": fell, "sim_error": error, "steps": steps, "yaw": total_yaw,
-            "displacement": (pose.x - start.x, pose.y - start.y)}
+    return {
+        "pose": pose,
+        "fell": fell,
+        "sim_error": error,
+        "steps": steps,
+        "yaw": total_yaw,
+        "displacement": (pose.x - start.x, pose.y - start.y),
+    }
 
 
 def _error_ratio(executed: dict, commanded: dict, measure: str) -> float:
@@ -103,21 +109,33 @@ def walkcheck(backends: list[str]) -> tuple[dict, str]:
             backend.close()
     lines = []
     for name in backends:
-        lines += [f"### {name}", "",
-                  "| sequence | double steps | fell? | commanded (dx, dy) [m] / yaw [rad] | executed | error | pass |",
-                  "|---|---|---|---|---|---|---|"]
+        lines += [
+            f"### {name}",
+            "",
+            "| sequence | double steps | fell? | commanded (dx, dy) [m] / yaw [rad] | executed | error | pass |",
+            "|---|---|---|---|---|---|---|",
+        ]
         for seq in sequences:
             cmd, ex = results["pymunk"][seq.name], results[name][seq.name]
             ratio = _error_ratio(ex, cmd, seq.measure)
             ok = not ex["fell"] and ex["sim_error"] is None and ratio <= TOLERANCE
-            fmt = (lambda r: f"{r['yaw']:+.2f} rad") if seq.measure == "yaw" else (
-                lambda r: f"({r['displacement'][0]:+.2f}, {r['displacement'][1]:+.2f})")
+            fmt = (
+                (lambda r: f"{r['yaw']:+.2f} rad")
+                if seq.measure == "yaw"
+                else (lambda r: f"({r['displacement'][0]:+.2f}, {r['displacement'][1]:+.2f})")
+            )
             fell = "sim error" if ex["sim_error"] else ("yes" if ex["fell"] else "no")
-            lines.append(f"| {seq.name} | {ex['steps']}/{len(seq.actions)} | {fell} | {fmt(cmd)} | {fmt(ex)} | "
-                         f"{100 * ratio:.0f} % | {'yes' if ok else 'NO'} |")
+            lines.append(
+                f"| {seq.name} | {ex['steps']}/{len(seq.actions)} | {fell} | {fmt(cmd)} | {fmt(ex)} | "
+                f"{100 * ratio:.0f} % | {'yes' if ok else 'NO'} |"
+            )
         lines.append("")
-    lines += ["### Cross-backend consistency (final planar pose, same sequences)", "",
-              "| pair | position diff mean [m] | max [m] | yaw diff mean [rad] | max [rad] |", "|---|---|---|---|---|"]
+    lines += [
+        "### Cross-backend consistency (final planar pose, same sequences)",
+        "",
+        "| pair | position diff mean [m] | max [m] | yaw diff mean [rad] | max [rad] |",
+        "|---|---|---|---|---|",
+    ]
     for a, b in combinations(results, 2):
         dp, dy = [], []
         for seq in sequences:
@@ -131,8 +149,11 @@ def walkcheck(backends: list[str]) -> tuple[dict, str]:
 def main(argv: list[str] | None = None) -> None:
     from footsim.tasks.scenes import atomic_write_text, parse_kv_args
 
-    args = parse_kv_args(sys.argv[1:] if argv is None else argv,
-                         {"backends": "mujoco,dm_control,pybullet", "out": ""}, "footsim-walkcheck")
+    args = parse_kv_args(
+        sys.argv[1:] if argv is None else argv,
+        {"backends": "mujoco,dm_control,pybullet", "out": ""},
+        "footsim-walkcheck",
+    )
     from footsim.backends.base import require_known_backends
 
     backends = [b for b in args["backends"].split(",") if b]

@@ -65,9 +65,11 @@ def _order(backend, pattern, level: float, command: str):
         # the speed whose per-step order reaches the step limit: v / (2 freq) · multiplier = limit
         engine, limits, p = backend.engine, backend.robot.step_limits, backend.walk_current
         scale = 2.0 * engine.freq
-        return engine.footsteps_from_velocity(x * limits.x * scale / p.x_speed_multiplier,
-                                              y * limits.y * scale / p.y_speed_multiplier,
-                                              yaw * limits.theta * scale / p.yaw_speed_multiplier)
+        return engine.footsteps_from_velocity(
+            x * limits.x * scale / p.x_speed_multiplier,
+            y * limits.y * scale / p.y_speed_multiplier,
+            yaw * limits.theta * scale / p.yaw_speed_multiplier,
+        )
     raise ValueError(f"tune.command must be 'action' or 'velocity', got {command!r}")
 
 
@@ -80,8 +82,9 @@ def _speed(start: Pose2D, end: Pose2D, yaw: float, axis: str, sign: float, secon
     return sign * local / seconds
 
 
-def measure_direction(backend, name: str, levels, warmup: int, measure: int, command: str, min_gain: float,
-                      seed: int = 0) -> dict:
+def measure_direction(
+    backend, name: str, levels, warmup: int, measure: int, command: str, min_gain: float, seed: int = 0
+) -> dict:
     """One episode raising the commanded speed in ``name``'s direction; see the module docstring."""
     _, pattern, axis, sign = DIRECTIONS[name]
     backend.reset(Scene(goal=Pose2D(100.0, 0.0, 0.0)), np.random.default_rng(seed))
@@ -139,8 +142,9 @@ def evaluate_walk(backend, tune) -> dict:
     directions = {}
     if out["stands"]:
         for name in names:
-            directions[name] = measure_direction(backend, name, levels, warmup, measure, str(tune["command"]),
-                                                 float(tune["min_gain"]), int(tune["seed"]))
+            directions[name] = measure_direction(
+                backend, name, levels, warmup, measure, str(tune["command"]), float(tune["min_gain"]), int(tune["seed"])
+            )
     terms = {}
     for term in WEIGHTS:
         speeds = [d["speed"] for n, d in directions.items() if DIRECTIONS[n][0] == term]
@@ -154,9 +158,11 @@ def evaluate_walk(backend, tune) -> dict:
 
 
 def format_result(result: dict) -> str:
-    lines = [f"objective {result['objective']:.4f} = v+x {result['v_forward']:.3f} + v-x {result['v_backward']:.3f}"
-             f" + 2 × v_y {result['v_lateral']:.3f} + 0.2 × v_yaw {result['v_turn']:.3f}"
-             f"   (stands: {result['stands']}, {result['cpu_s']:.1f} s CPU)"]
+    lines = [
+        f"objective {result['objective']:.4f} = v+x {result['v_forward']:.3f} + v-x {result['v_backward']:.3f}"
+        f" + 2 × v_y {result['v_lateral']:.3f} + 0.2 × v_yaw {result['v_turn']:.3f}"
+        f"   (stands: {result['stands']}, {result['cpu_s']:.1f} s CPU)"
+    ]
     for name, d in result["directions"].items():
         ladder = "  ".join(f"{r['level']:.2f}:" + ("FELL" if r["fell"] else f"{r['speed']:+.3f}") for r in d["levels"])
         lines.append(f"  {name:10s} best {d['speed']:.3f} ({d['stop']})  {ladder}")
@@ -167,20 +173,27 @@ def run(cfg, run_dir: Path | None = None) -> dict:
     """Build the backend from a composed config (``backend``, ``robot``, ``walk``, ``tune``) and
     measure; writes ``walktune.json`` into ``run_dir`` when given."""
     from footsim import config as fconf
-    from footsim.rl.common import write_json
-
     from footsim.backends.base import backend_class
+    from footsim.rl.common import write_json
 
     plain = fconf.to_plain(cfg)
     robot = fconf.build_robot(plain["robot"])
     walk = fconf.build_walk(plain["walk"])  # unknown / non-numeric walk keys raise here
     if backend_class(plain["backend"]["name"]).kind != "3d":
-        raise ValueError(f"footsim-walktune needs a 3D backend (mujoco, dm_control, pybullet), got {plain['backend']['name']!r}")
+        raise ValueError(
+            f"footsim-walktune needs a 3D backend (mujoco, dm_control, pybullet), got {plain['backend']['name']!r}"
+        )
     try:
         backend = fconf.build_backend(plain["backend"], robot, walk)
     except ValueError as err:  # e.g. feet overlapping at rest: this walk cannot stand, it scores 0
-        result = {"stands": False, **{t: 0.0 for t in WEIGHTS}, "objective": 0.0, "directions": {}, "cpu_s": 0.0,
-                  "invalid": str(err)}
+        result = {
+            "stands": False,
+            **{t: 0.0 for t in WEIGHTS},
+            "objective": 0.0,
+            "directions": {},
+            "cpu_s": 0.0,
+            "invalid": str(err),
+        }
     else:
         try:
             result = evaluate_walk(backend, plain["tune"])
@@ -212,9 +225,9 @@ def enqueue_walk(storage: str, study_name: str, walk: str | dict, keys=None, fix
         from omegaconf import OmegaConf
 
         params = OmegaConf.load(fconf.conf_dir() / "hpo" / "walk.yaml").hydra.sweeper.params
-        keys = [k[len("walk."):] for k in params if k[len("walk."):] not in fixed]
+        keys = [k[len("walk.") :] for k in params if k[len("walk.") :] not in fixed]
     if storage.startswith("sqlite:///"):
-        Path(storage[len("sqlite:///"):]).expanduser().parent.mkdir(parents=True, exist_ok=True)
+        Path(storage[len("sqlite:///") :]).expanduser().parent.mkdir(parents=True, exist_ok=True)
     study = optuna.create_study(study_name=study_name, storage=storage, direction="maximize", load_if_exists=True)
     enqueued = {f"walk.{k}": float(values[k]) for k in keys}
     study.enqueue_trial(enqueued, user_attrs={"enqueued": str(walk) if isinstance(walk, str) else "mapping"})

@@ -56,9 +56,14 @@ def main(argv: list[str]) -> None:
     obstacles, chunk, rounds = opts.get("obstacles", "1"), int(opts.get("chunk", 2000)), int(opts.get("rounds", 120))
 
     def spawn(path: str) -> subprocess.Popen:
-        proc = subprocess.Popen([sys.executable, __file__, "--worker", os.path.abspath(path), obstacles, str(chunk)],
-                                stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, cwd="/",
-                                env=dict(os.environ, PYTHONPATH=os.path.abspath(path)))
+        proc = subprocess.Popen(
+            [sys.executable, __file__, "--worker", os.path.abspath(path), obstacles, str(chunk)],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+            cwd="/",
+            env=dict(os.environ, PYTHONPATH=os.path.abspath(path)),
+        )
         if proc.stdout.readline().strip() != "ready":
             raise SystemExit(f"worker for {path} failed to start")
         return proc
@@ -77,10 +82,14 @@ def main(argv: list[str]) -> None:
     q = len(ratios) // 4
     print(f"obstacles={obstacles} chunk={chunk} rounds={rounds}")
     for name, path in (("A", a_dir), ("B", b_dir)):
-        print(f"{name} {path}: median {chunk / statistics.median(times[name]):,.0f} env steps per CPU second "
-              f"(best chunk {chunk / min(times[name]):,.0f})")
-    print(f"time A / time B per round: median {statistics.median(ratios):.3f} "
-          f"(interquartile {ratios[q]:.3f}-{ratios[-q - 1]:.3f}); > 1 means B is faster")
+        print(
+            f"{name} {path}: median {chunk / statistics.median(times[name]):,.0f} env steps per CPU second "
+            f"(best chunk {chunk / min(times[name]):,.0f})"
+        )
+    print(
+        f"time A / time B per round: median {statistics.median(ratios):.3f} "
+        f"(interquartile {ratios[q]:.3f}-{ratios[-q - 1]:.3f}); > 1 means B is faster"
+    )
 
 
 if __name__ == "__main__":

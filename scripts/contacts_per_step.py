@@ -23,15 +23,18 @@ from footsim.tasks.scenes import load_scenes, parse_kv_args
 
 
 def main(argv: list[str]) -> None:
-    args = parse_kv_args(argv, {"run": None, "backend": None, "scenes": None, "episodes": None,
-                                "outcome": "fall", "n": 40}, "contacts_per_step.py")
+    args = parse_kv_args(
+        argv,
+        {"run": None, "backend": None, "scenes": None, "episodes": None, "outcome": "fall", "n": 40},
+        "contacts_per_step.py",
+    )
     if None in (args["run"], args["backend"], args["scenes"], args["episodes"]):
         raise SystemExit("run=, backend=, scenes= and episodes= are required")
     cfg = OmegaConf.load(f"{args['run']}/config.yaml")
     cfg.backend = OmegaConf.create(fconf.load_preset("backend", args["backend"]))
     scenes = load_scenes(args["scenes"])
     with open(args["episodes"]) as f:
-        chosen = [int(r["scene"]) for r in csv.DictReader(f) if r["outcome"] == args["outcome"]][:int(args["n"])]
+        chosen = [int(r["scene"]) for r in csv.DictReader(f) if r["outcome"] == args["outcome"]][: int(args["n"])]
     env = make_env(cfg)
     controller = PolicyController(LoadedPolicy(args["run"]))
     outcomes = []

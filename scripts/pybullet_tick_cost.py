@@ -36,8 +36,9 @@ VARIANTS = {
 
 def standing(overrides: dict, engine: dict):
     walk = fconf.build_walk(fconf.load_preset("walk", fconf.walk_preset_for("pybullet")))
-    backend = fconf.build_backend(fconf.load_preset("backend", {"name": "pybullet", **overrides}),
-                                  fconf.build_robot("wolfgang"), walk)
+    backend = fconf.build_backend(
+        fconf.load_preset("backend", {"name": "pybullet", **overrides}), fconf.build_robot("wolfgang"), walk
+    )
     if engine:
         p.setPhysicsEngineParameter(physicsClientId=backend.sim.client, **engine)
     backend.reset(Scene(goal=Pose2D(100.0, 0.0, 0.0)), np.random.default_rng(0))
@@ -64,7 +65,9 @@ def main(argv: list[str]) -> None:
             sim = backend.sim
             contacts = len(p.getContactPoints(sim.robot_id, physicsClientId=sim.client))
             med = statistics.median(times[name])
-            print(f"| {name} | {med:.0f} | {min(times[name]):.0f}–{max(times[name]):.0f} | {med / base:.2f} | {contacts} |")
+            print(
+                f"| {name} | {med:.0f} | {min(times[name]):.0f}–{max(times[name]):.0f} | {med / base:.2f} | {contacts} |"
+            )
     finally:
         for backend in backends.values():
             backend.close()

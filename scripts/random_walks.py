@@ -47,8 +47,9 @@ def main(argv: list[str]) -> None:
     first, _, last = args["seeds"].partition(":")
     seeds = range(int(first), int(last or int(first) + 1))
     walk = fconf.build_walk(fconf.load_preset("walk", fconf.walk_preset_for(name)))
-    backend = fconf.build_backend(fconf.load_preset("backend", {"name": name, **overrides}),
-                                  fconf.build_robot("wolfgang"), walk)
+    backend = fconf.build_backend(
+        fconf.load_preset("backend", {"name": name, **overrides}), fconf.build_robot("wolfgang"), walk
+    )
     try:
         survived = 0
         for seed in seeds:
@@ -58,7 +59,9 @@ def main(argv: list[str]) -> None:
             print(f"seed {seed}: {'-' if fell is None else f'fell at {fell}'}", flush=True)
     finally:
         backend.close()
-    print(f"{name} {overrides or ''}: {survived} of {len(seeds)} sequences walked {args['steps']} double steps without a fall")
+    print(
+        f"{name} {overrides or ''}: {survived} of {len(seeds)} sequences walked {args['steps']} double steps without a fall"
+    )
 
 
 if __name__ == "__main__":

@@ -36,8 +36,11 @@ def main():
         controller = make_controller(env, {**base, **CANDIDATES[name]})
         s = summarize(evaluate(env, controller, scenes, progress=False))
         env.close()
-        print(f"{name} {CANDIDATES[name]}: success {s['success']:.3f} fall {s['fall']:.3f} timeout {s['timeout']:.3f} "
-              f"time {s['success_time_mean']:.2f}", flush=True)
+        print(
+            f"{name} {CANDIDATES[name]}: success {s['success']:.3f} fall {s['fall']:.3f} timeout {s['timeout']:.3f} "
+            f"time {s['success_time_mean']:.2f}",
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

@@ -16,7 +16,6 @@ from footsim.planners.velocity import VelocityController
 from footsim.rl.evaluate import evaluate, summarize
 from footsim.tasks.scenes import sample_scenes
 
-
 BACKEND = "pymunk"
 
 
@@ -34,8 +33,11 @@ def run_stage(task, grid, base, n):
         params = {**base, **dict(zip(keys, values))}
         s = score(task, params, n)
         rows.append((s["success"], -s["success_time_mean"], params, s))
-        print(f"{task} {dict(zip(keys, values))}: success {s['success']:.3f} collision {s['collision']:.3f} "
-              f"fall {s['fall']:.3f} timeout {s['timeout']:.3f} time {s['success_time_mean']:.2f}", flush=True)
+        print(
+            f"{task} {dict(zip(keys, values))}: success {s['success']:.3f} collision {s['collision']:.3f} "
+            f"fall {s['fall']:.3f} timeout {s['timeout']:.3f} time {s['success_time_mean']:.2f}",
+            flush=True,
+        )
     rows.sort(key=lambda r: (r[0], r[1]), reverse=True)
     return rows[0][2]
 
@@ -50,12 +52,22 @@ def main():
         motion = {"max_vel_x": [0.15, 0.25, 0.35], "max_rotation_vel": [0.5, 1.0], "smoothing": [0.5, 1.0]}
         print("motion best:", run_stage("nav", motion, {}, n), flush=True)
         return
-    motion = {"max_vel_x": [0.3, 0.45], "max_vel_y": [0.1, 0.2], "max_rotation_vel": [0.6, 1.0],
-              "translation_slow_down_factor": [0.5, 1.0], "rotation_slow_down_factor": [0.3, 1.0]}
+    motion = {
+        "max_vel_x": [0.3, 0.45],
+        "max_vel_y": [0.1, 0.2],
+        "max_rotation_vel": [0.6, 1.0],
+        "translation_slow_down_factor": [0.5, 1.0],
+        "rotation_slow_down_factor": [0.3, 1.0],
+    }
     best = run_stage("nav", motion, {}, n)
     print("stage 1 best:", best, flush=True)
-    obstacles = {"inflation": [0.03, 0.08], "heading_target": ["goal", "carrot"], "behind_ball": [False, True],
-                 "carrot_distance": [5, 10], "smoothing": [0.5, 1.0]}
+    obstacles = {
+        "inflation": [0.03, 0.08],
+        "heading_target": ["goal", "carrot"],
+        "behind_ball": [False, True],
+        "carrot_distance": [5, 10],
+        "smoothing": [0.5, 1.0],
+    }
     best = run_stage("nav_obstacles", obstacles, best, n)
     print("stage 2 best:", best, flush=True)
 

@@ -46,17 +46,37 @@ RANGES = {
     "trunk_z_movement": (0.0, 0.02),
     "first_step_swing_factor": (0.5, 1.5),
 }
-START = {"freq": 1.0, "double_support_ratio": 0.05, "foot_distance": 0.1799, "foot_rise": 0.05, "trunk_height": 0.37,
-         "trunk_pitch": 0.0, "trunk_pitch_p_coef_forward": -0.186, "trunk_pitch_p_coef_turn": -0.457 / 2,
-         "trunk_swing": 0.4, "trunk_phase": -0.1517, "trunk_x_offset": -0.01, "trunk_y_offset": 0.0037,
-         "trunk_z_movement": 0.0155, "first_step_swing_factor": 1.0,
-         "physics_dt": 0.005, "torsional_friction": 0.05, "servo_kp_scale": 2.0, "servo_damping_scale": 0.3,
-         "servo_kv": 4.0}
+START = {
+    "freq": 1.0,
+    "double_support_ratio": 0.05,
+    "foot_distance": 0.1799,
+    "foot_rise": 0.05,
+    "trunk_height": 0.37,
+    "trunk_pitch": 0.0,
+    "trunk_pitch_p_coef_forward": -0.186,
+    "trunk_pitch_p_coef_turn": -0.457 / 2,
+    "trunk_swing": 0.4,
+    "trunk_phase": -0.1517,
+    "trunk_x_offset": -0.01,
+    "trunk_y_offset": 0.0037,
+    "trunk_z_movement": 0.0155,
+    "first_step_swing_factor": 1.0,
+    "physics_dt": 0.005,
+    "torsional_friction": 0.05,
+    "servo_kp_scale": 2.0,
+    "servo_damping_scale": 0.3,
+    "servo_kv": 4.0,
+}
 
 
 # Gains of footsim.backends.physics3d.TrunkStabilizer [rad per rad of trunk error]; hand scans
 # on MuJoCo: hip roll 0.3-0.5 helps the lateral sequences, pitch gains alone do not.
-STABILIZER_RANGES = {"hip_roll": (0.0, 1.2), "hip_pitch": (-0.5, 1.0), "ankle_roll": (-0.5, 0.5), "ankle_pitch": (-0.5, 0.5)}
+STABILIZER_RANGES = {
+    "hip_roll": (0.0, 1.2),
+    "hip_pitch": (-0.5, 1.0),
+    "ankle_roll": (-0.5, 0.5),
+    "ankle_pitch": (-0.5, 0.5),
+}
 
 # Not searched: trunk_y_offset stays 0.  The robot and the engine are mirror-symmetric (checked
 # to 1e-15 on mirrored lateral/turn trajectories), so a lateral trunk offset only trades one side
@@ -65,8 +85,9 @@ STABILIZER_RANGES = {"hip_roll": (0.0, 1.2), "hip_pitch": (-0.5, 1.0), "ankle_ro
 FIXED = {"trunk_y_offset": 0.0}
 
 
-def evaluate(backend_name: str, walk: dict, backend_options: dict, commanded: dict, sequences,
-             budget_ms: float | None = None) -> tuple[float, dict]:
+def evaluate(
+    backend_name: str, walk: dict, backend_options: dict, commanded: dict, sequences, budget_ms: float | None = None
+) -> tuple[float, dict]:
     robot = fconf.build_robot("wolfgang")
     cfg = fconf.load_preset("backend", {"name": backend_name, **backend_options})
     try:
@@ -123,53 +144,77 @@ def main(argv: list[str]) -> None:
 
     def objective(trial):
         walk = dict(base, **FIXED)
-        for key, (lo, hi) in (ranges.items() if tune_walk else ()):  # one range set: every 3D backend walks MuJoCo's gait (session 4)
+        for key, (lo, hi) in (
+            ranges.items() if tune_walk else ()
+        ):  # one range set: every 3D backend walks MuJoCo's gait (session 4)
             walk[key] = trial.suggest_float(key, lo, hi)
         if name == "pybullet" and servo:  # Bullet in torque mode with MuJoCo's servo law
-            options = {"motor": "servo",
-                       "servo_kp_scale": trial.suggest_float("servo_kp_scale", 1.0, 6.0),
-                       "servo_damping_scale": trial.suggest_float("servo_damping_scale", 0.1, 1.5),
-                       "servo_kv": trial.suggest_float("servo_kv", 0.0, 10.0),
-                       "armature_scale": trial.suggest_float("armature_scale", 0.3, 3.0, log=True),
-                       "spinning_friction": trial.suggest_float("spinning_friction", 0.01, 0.3, log=True),
-                       "rolling_friction": trial.suggest_float("rolling_friction", 0.01, 0.3, log=True),
-                       "solver_iterations": trial.suggest_categorical("solver_iterations", iterations)}
+            options = {
+                "motor": "servo",
+                "servo_kp_scale": trial.suggest_float("servo_kp_scale", 1.0, 6.0),
+                "servo_damping_scale": trial.suggest_float("servo_damping_scale", 0.1, 1.5),
+                "servo_kv": trial.suggest_float("servo_kv", 0.0, 10.0),
+                "armature_scale": trial.suggest_float("armature_scale", 0.3, 3.0, log=True),
+                "spinning_friction": trial.suggest_float("spinning_friction", 0.01, 0.3, log=True),
+                "rolling_friction": trial.suggest_float("rolling_friction", 0.01, 0.3, log=True),
+                "solver_iterations": trial.suggest_categorical("solver_iterations", iterations),
+            }
             hz = trial.suggest_categorical("physics_hz", physics_hz)
             options["physics_dt"] = options["control_dt"] = 1.0 / hz
         elif name == "pybullet":  # Bullet's motor and contact knobs (conf/backend/pybullet.yaml)
-            options = {"position_gain_scale": trial.suggest_float("position_gain_scale", 2.0, 12.0),
-                       "velocity_gain": trial.suggest_float("velocity_gain", 0.3, 2.0),
-                       "spinning_friction": trial.suggest_float("spinning_friction", 0.02, 0.3, log=True),
-                       "solver_iterations": trial.suggest_categorical("solver_iterations", iterations)}
+            options = {
+                "position_gain_scale": trial.suggest_float("position_gain_scale", 2.0, 12.0),
+                "velocity_gain": trial.suggest_float("velocity_gain", 0.3, 2.0),
+                "spinning_friction": trial.suggest_float("spinning_friction", 0.02, 0.3, log=True),
+                "solver_iterations": trial.suggest_categorical("solver_iterations", iterations),
+            }
             hz = trial.suggest_categorical("physics_hz", physics_hz)
             options["physics_dt"] = options["control_dt"] = 1.0 / hz
         else:  # the MuJoCo model options shared by mujoco and dm_control
-            options = {"physics_dt": trial.suggest_categorical("physics_dt", [0.005, 0.01]), "control_dt": 0.01,
-                       "torsional_friction": trial.suggest_float("torsional_friction", 0.02, 0.1, log=True),
-                       "servo_kp_scale": trial.suggest_float("servo_kp_scale", 1.5, 3.0),
-                       "servo_damping_scale": trial.suggest_float("servo_damping_scale", 0.2, 0.6),
-                       "servo_kv": trial.suggest_float("servo_kv", 1.0, 8.0)}
+            options = {
+                "physics_dt": trial.suggest_categorical("physics_dt", [0.005, 0.01]),
+                "control_dt": 0.01,
+                "torsional_friction": trial.suggest_float("torsional_friction", 0.02, 0.1, log=True),
+                "servo_kp_scale": trial.suggest_float("servo_kp_scale", 1.5, 3.0),
+                "servo_damping_scale": trial.suggest_float("servo_damping_scale", 0.2, 0.6),
+                "servo_kv": trial.suggest_float("servo_kv", 1.0, 8.0),
+            }
         if "stabilizer" in args:  # IMU feedback gains of the shared driver (TrunkStabilizer)
-            options["stabilizer"] = {g: trial.suggest_float(f"stab_{g}", lo, hi) for g, (lo, hi) in STABILIZER_RANGES.items()}
+            options["stabilizer"] = {
+                g: trial.suggest_float(f"stab_{g}", lo, hi) for g, (lo, hi) in STABILIZER_RANGES.items()
+            }
         cost, detail = evaluate(name, walk, options, commanded, sequences, budget_ms)
         trial.set_user_attr("detail", detail)
         return cost
 
-    study = optuna.create_study(direction="minimize", sampler=optuna.samplers.TPESampler(seed=int(args.get("seed", 0)), multivariate=True),
-                                storage=storage, study_name=f"walk_{name}", load_if_exists=True)
+    study = optuna.create_study(
+        direction="minimize",
+        sampler=optuna.samplers.TPESampler(seed=int(args.get("seed", 0)), multivariate=True),
+        storage=storage,
+        study_name=f"walk_{name}",
+        load_if_exists=True,
+    )
     if len(study.trials) == 0:
         if servo:  # MuJoCo's servo values (conf/backend/mujoco.yaml) on Bullet
             mujoco_cfg = fconf.load_preset("backend", {"name": "mujoco"})
-            study.enqueue_trial({**{k: mujoco_cfg[k] for k in ("servo_kp_scale", "servo_damping_scale", "servo_kv")},
-                                 "armature_scale": 1.0, "spinning_friction": mujoco_cfg["torsional_friction"],
-                                 "rolling_friction": mujoco_cfg["rolling_friction"]})
+            study.enqueue_trial(
+                {
+                    **{k: mujoco_cfg[k] for k in ("servo_kp_scale", "servo_damping_scale", "servo_kv")},
+                    "armature_scale": 1.0,
+                    "spinning_friction": mujoco_cfg["torsional_friction"],
+                    "rolling_friction": mujoco_cfg["rolling_friction"],
+                }
+            )
         elif "enqueue" not in args:
             study.enqueue_trial(START)
         if "enqueue_current" in args:  # the current conf/walk/<backend>.yaml + backend options
             backend_cfg = fconf.load_preset("backend", {"name": name})
             current = {k: base[k] for k in RANGES}
-            keys = (("position_gain_scale", "velocity_gain", "spinning_friction", "solver_iterations") if name == "pybullet" else
-                    ("physics_dt", "torsional_friction", "servo_kp_scale", "servo_damping_scale", "servo_kv"))
+            keys = (
+                ("position_gain_scale", "velocity_gain", "spinning_friction", "solver_iterations")
+                if name == "pybullet"
+                else ("physics_dt", "torsional_friction", "servo_kp_scale", "servo_damping_scale", "servo_kv")
+            )
             current.update({k: backend_cfg[k] for k in keys})
             if name == "pybullet" and current["solver_iterations"] not in iterations:
                 del current["solver_iterations"]  # not among this study's choices: sampled
@@ -182,7 +227,10 @@ def main(argv: list[str]) -> None:
 
     def report(study, trial):
         if trial.value is not None and trial.number % 10 == 0 or study.best_trial.number == trial.number:
-            print(f"trial {trial.number}: {trial.value:.3f} best {study.best_value:.3f} {study.best_trial.user_attrs.get('detail')}", flush=True)
+            print(
+                f"trial {trial.number}: {trial.value:.3f} best {study.best_value:.3f} {study.best_trial.user_attrs.get('detail')}",
+                flush=True,
+            )
 
     study.optimize(objective, n_trials=trials, callbacks=[report])
     best = study.best_trial

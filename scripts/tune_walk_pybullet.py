@@ -70,8 +70,11 @@ def evaluate(walk_over: dict, backend_over: dict, sequences, commanded, stop_at_
             errors.append(min(ratio, 2.0) + (1.0 if res["fell"] else 0.0))
             rows.append((seq.name, res["steps"], len(seq.actions), res["fell"], ratio, ok))
             if verbose:
-                print(f"  {seq.name:22s} {res['steps']:3d}/{len(seq.actions)} fell={res['fell']!s:5} "
-                      f"err={100 * ratio:5.0f}% {'ok' if ok else 'FAIL'}", flush=True)
+                print(
+                    f"  {seq.name:22s} {res['steps']:3d}/{len(seq.actions)} fell={res['fell']!s:5} "
+                    f"err={100 * ratio:5.0f}% {'ok' if ok else 'FAIL'}",
+                    flush=True,
+                )
             if stop_at_failure and not ok:
                 break
     finally:
@@ -123,8 +126,11 @@ def main(argv: list[str]) -> None:
         passed, err, _ = evaluate(walk_c, back_c, sequences, commanded, stop_at_failure=False)
         if (passed, -err) > (best[0], -best[1]):
             best = (passed, err, cand)
-        print(f"trial {trial}: passed {passed} err {err:.3f} | best {best[0]} {best[1]:.3f} "
-              + " ".join(f"{k}={v:.4g}" for k, v in best[2].items()), flush=True)
+        print(
+            f"trial {trial}: passed {passed} err {err:.3f} | best {best[0]} {best[1]:.3f} "
+            + " ".join(f"{k}={v:.4g}" for k, v in best[2].items()),
+            flush=True,
+        )
         if best[0] == len(sequences):
             break
 

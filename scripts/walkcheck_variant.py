@@ -39,8 +39,9 @@ def main(argv: list[str]) -> None:
         else:
             raise SystemExit(f"unknown key {key!r}; keys: backend, extra, backend.<option>, engine.<bullet parameter>")
     walk = fconf.build_walk(fconf.load_preset("walk", fconf.walk_preset_for(name)))
-    backend = fconf.build_backend(fconf.load_preset("backend", {"name": name, **overrides}),
-                                  fconf.build_robot("wolfgang"), walk)
+    backend = fconf.build_backend(
+        fconf.load_preset("backend", {"name": name, **overrides}), fconf.build_robot("wolfgang"), walk
+    )
     if engine:
         if name != "pybullet":
             raise SystemExit("engine.<parameter> is for backend=pybullet")
@@ -49,8 +50,11 @@ def main(argv: list[str]) -> None:
         pybullet.setPhysicsEngineParameter(physicsClientId=backend.sim.client, **engine)
     geometric = wc.make_backend("pymunk")
     sequences = wc.standard_sequences() + [
-        wc.Sequence(f"random seed {3000 + i}", np.random.default_rng(3000 + i).uniform(-1, 1, size=(50, 6)), "translation")
-        for i in range(extra)]
+        wc.Sequence(
+            f"random seed {3000 + i}", np.random.default_rng(3000 + i).uniform(-1, 1, size=(50, 6)), "translation"
+        )
+        for i in range(extra)
+    ]
     cells = []
     try:
         for sequence in sequences:

@@ -49,9 +49,15 @@ def standalone(backends: list[str], repeats: int) -> None:
     print(f"MUJOCO_GL={os.environ.get('MUJOCO_GL', '(unset)')}; medians of {repeats} processes [MB]\n")
     print("| backend | RSS | PSS | USS | anonymous | file-backed |\n|---|---|---|---|---|---|")
     for backend in backends:
-        runs = [[float(v) for v in subprocess.run([sys.executable, "-c", _ONE_ENV, backend], check=True,
-                                                    capture_output=True, text=True).stdout.split()[-5:]]
-                for _ in range(repeats)]
+        runs = [
+            [
+                float(v)
+                for v in subprocess.run(
+                    [sys.executable, "-c", _ONE_ENV, backend], check=True, capture_output=True, text=True
+                ).stdout.split()[-5:]
+            ]
+            for _ in range(repeats)
+        ]
         medians = [statistics.median(column) for column in zip(*runs)]
         print(f"| {backend} | " + " | ".join(f"{v:.0f}" for v in medians) + " |")
 
@@ -63,11 +69,13 @@ def main(argv: list[str]) -> None:
 
     args = dict(a.split("=", 1) for a in argv)
     if args.get("standalone", "false").lower() in ("1", "true", "yes"):
-        return standalone(args.get("backends", "pymunk,mujoco,dm_control,pybullet").split(","),
-                          int(args.get("repeats", "3")))
+        return standalone(
+            args.get("backends", "pymunk,mujoco,dm_control,pybullet").split(","), int(args.get("repeats", "3"))
+        )
     backend, n = args.get("backend", "mujoco"), int(args.get("n_envs", "4"))
     multiprocessing.set_forkserver_preload(  # as footsim.rl.train.build_vec_env
-        ["stable_baselines3.common.vec_env", "footsim.env", BACKENDS[backend].target.split(":")[0]])
+        ["stable_baselines3.common.vec_env", "footsim.env", BACKENDS[backend].target.split(":")[0]]
+    )
     venv = SubprocVecEnv([make(backend) for _ in range(n)], start_method="forkserver")
     try:
         venv.reset()
@@ -75,7 +83,9 @@ def main(argv: list[str]) -> None:
             venv.step(np.array([venv.action_space.sample() for _ in range(n)]))
         for child in psutil.Process(os.getpid()).children(recursive=True):
             m = child.memory_full_info()
-            print(f"pid {child.pid}: RSS {m.rss / 2**20:.0f} MB, PSS {m.pss / 2**20:.0f} MB, USS {m.uss / 2**20:.0f} MB")
+            print(
+                f"pid {child.pid}: RSS {m.rss / 2**20:.0f} MB, PSS {m.pss / 2**20:.0f} MB, USS {m.uss / 2**20:.0f} MB"
+            )
     finally:
         venv.close()
 

@@ -51,7 +51,9 @@ def test_env_checkers_pass():
 
 
 def test_render_rgb_frame_shows_the_goal_marker():
-    env = FootstepEnv(backend={"name": "dm_control", "render_size": [160, 120]}, obstacles=True, render_mode="rgb_array")
+    env = FootstepEnv(
+        backend={"name": "dm_control", "render_size": [160, 120]}, obstacles=True, render_mode="rgb_array"
+    )
     try:
         env.reset(seed=3)
         frame = env.render()
@@ -91,8 +93,10 @@ def test_short_walk_moves_forward_without_falling(backend):
 
 def test_reset_levels_the_soles_on_the_floor(backend):
     backend.reset(EMPTY, np.random.default_rng(0))
-    backend.sim.reset_robot(np.array([0.0, 0.0, backend.walk.trunk_height]), dict(backend.robot.walk_ready) | dict(
-        zip(LEG_JOINT_NAMES, backend.engine.standing_joint_targets().tolist())))
+    backend.sim.reset_robot(
+        np.array([0.0, 0.0, backend.walk.trunk_height]),
+        dict(backend.robot.walk_ready) | dict(zip(LEG_JOINT_NAMES, backend.engine.standing_joint_targets().tolist())),
+    )
     soles = backend.sim._soles
     np.testing.assert_allclose(soles.xpos[:, 2].min(), 0.0, atol=1e-9)
     np.testing.assert_allclose(soles.xmat[0].reshape(3, 3)[2], (0.0, 0.0, 1.0), atol=1e-9)  # left sole level
@@ -152,18 +156,40 @@ def test_model_options_match_the_mujoco_backend(backend):
     from footsim.config import load_preset
 
     cfg = load_preset("backend", "dm_control")
-    options = {k: cfg[k] for k in ("torsional_friction", "rolling_friction", "servo_kp_scale", "servo_damping_scale", "servo_kv",
-                                   "physics_dt", "control_dt", "integrator")}
+    options = {
+        k: cfg[k]
+        for k in (
+            "torsional_friction",
+            "rolling_friction",
+            "servo_kp_scale",
+            "servo_damping_scale",
+            "servo_kv",
+            "physics_dt",
+            "control_dt",
+            "integrator",
+        )
+    }
     ours = backend.sim.physics.model.ptr
     theirs = MujocoBackend(backend.robot, backend.walk, **options)  # the MuJoCo backend given the same options
     try:
         ref = theirs.sim.model
-        for field in ("geom_condim", "geom_friction", "actuator_gainprm", "actuator_biasprm", "dof_damping",
-                      "body_mass", "geom_contype", "geom_conaffinity"):
+        for field in (
+            "geom_condim",
+            "geom_friction",
+            "actuator_gainprm",
+            "actuator_biasprm",
+            "dof_damping",
+            "body_mass",
+            "geom_contype",
+            "geom_conaffinity",
+        ):
             np.testing.assert_allclose(getattr(ours, field), getattr(ref, field), rtol=1e-5, err_msg=field)
         assert ours.opt.integrator == ref.opt.integrator and ours.opt.timestep == ref.opt.timestep
-        feet = [backend.sim.physics.bind(g).element_id for s in ("left", "right")
-                for g in backend.sim.mjcf_model.find("body", backend.robot.foot_link(s)).get_children("geom")]
+        feet = [
+            backend.sim.physics.bind(g).element_id
+            for s in ("left", "right")
+            for g in backend.sim.mjcf_model.find("body", backend.robot.foot_link(s)).get_children("geom")
+        ]
         assert feet and all(ours.geom_condim[g] == 6 for g in feet)  # torsional and rolling friction
         assert all(ours.geom_friction[g, 1] == pytest.approx(cfg["torsional_friction"]) for g in feet)
         assert all(ours.geom_friction[g, 2] == pytest.approx(cfg["rolling_friction"]) for g in feet)
@@ -231,8 +257,11 @@ def test_obstacle_contact_is_reported_and_does_not_end_the_episode():
 
 def test_obstacle_pool_is_placed_and_parked(backend):
     sim = backend.sim
-    scene = Scene(goal=Pose2D(3.0, 0.0, 0.0), obstacles=(Obstacle(1.0, 0.5, 0.2), Obstacle(2.0, -0.5, 0.3)),
-                  ball=Obstacle(1.5, 0.0, 0.075))
+    scene = Scene(
+        goal=Pose2D(3.0, 0.0, 0.0),
+        obstacles=(Obstacle(1.0, 0.5, 0.2), Obstacle(2.0, -0.5, 0.3)),
+        ball=Obstacle(1.5, 0.0, 0.075),
+    )
     backend.reset(scene, np.random.default_rng(0))
     pool = sim.physics.bind(sim._pool)
     assert [g.name for g in sim._pool] == [f"obstacle{i}" for i in range(N_CYLINDERS)] + ["ball"]
@@ -263,7 +292,9 @@ def _rss_mb():
 
 def test_many_resets_and_create_close_cycles_do_not_leak(backend):
     sim = backend.sim
-    joints = dict(backend.robot.walk_ready) | dict(zip(LEG_JOINT_NAMES, backend.engine.standing_joint_targets().tolist()))
+    joints = dict(backend.robot.walk_ready) | dict(
+        zip(LEG_JOINT_NAMES, backend.engine.standing_joint_targets().tolist())
+    )
     base = np.array([0.0, 0.0, backend.walk.trunk_height])
 
     def reset(scene):  # the sim's reset verbs (the driver's settling ticks are plain physics.step calls)
@@ -277,8 +308,13 @@ def test_many_resets_and_create_close_cycles_do_not_leak(backend):
     before = _rss_mb()
     rng = np.random.default_rng(0)
     for i in range(1000):
-        reset(Scene(goal=Pose2D(1.0, 0.0, 0.0), obstacles=(Obstacle(2.0, float(rng.uniform(-1, 1)), 0.2),),
-                    ball=Obstacle(1.2, 0.0, 0.075) if i % 2 else None))
+        reset(
+            Scene(
+                goal=Pose2D(1.0, 0.0, 0.0),
+                obstacles=(Obstacle(2.0, float(rng.uniform(-1, 1)), 0.2),),
+                ball=Obstacle(1.2, 0.0, 0.075) if i % 2 else None,
+            )
+        )
     after_resets = _rss_mb()
     assert after_resets - before < 10.0, f"RSS grew {after_resets - before:.1f} MB over 1000 resets"
 
@@ -327,8 +363,9 @@ print("frame:", frame.shape, float(frame.std()) > 1.0, "egl after:", EGL in sys.
 from dm_control import suite
 print("suite frame:", float(suite.load("cartpole", "swingup").physics.render(48, 64).std()) > 1.0)
 """
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
-                         env={**os.environ, "MUJOCO_GL": "egl"}).stdout
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, env={**os.environ, "MUJOCO_GL": "egl"}
+    ).stdout
     assert "egl before rendering: False" in out
     assert "frame: (480, 480, 3) True egl after: True" in out
     assert "suite frame: True" in out

@@ -74,8 +74,13 @@ def test_render_with_rendering_switched_off_names_mujoco_gl():
         "        print(name, error)\n"
         "    env.close()\n"
     )
-    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300,
-                            env={**os.environ, "MUJOCO_GL": "disable"})
+    result = subprocess.run(
+        [sys.executable, "-c", script],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env={**os.environ, "MUJOCO_GL": "disable"},
+    )
     assert result.returncode == 0, result.stderr
     lines = result.stdout.splitlines()
     assert [line.split()[0] for line in lines] == ["mujoco", "dm_control"]
@@ -232,8 +237,11 @@ def test_obstacle_contact_is_reported_and_does_not_end_the_episode():
 
 def test_obstacle_pool_is_placed_and_parked(backend):
     sim = backend.sim
-    scene = Scene(goal=Pose2D(3.0, 0.0, 0.0), obstacles=(Obstacle(1.0, 0.5, 0.2), Obstacle(2.0, -0.5, 0.3)),
-                  ball=Obstacle(1.5, 0.0, 0.075))
+    scene = Scene(
+        goal=Pose2D(3.0, 0.0, 0.0),
+        obstacles=(Obstacle(1.0, 0.5, 0.2), Obstacle(2.0, -0.5, 0.3)),
+        ball=Obstacle(1.5, 0.0, 0.075),
+    )
     backend.reset(scene, np.random.default_rng(0))
     geoms = sim._obstacle_geoms
     np.testing.assert_allclose(sim.model.geom_pos[geoms[0], :2], (1.0, 0.5))
@@ -256,8 +264,11 @@ def test_many_resets_and_create_close_cycles_do_not_leak(backend):
     before = _rss_mb()
     rng = np.random.default_rng(0)
     for i in range(1000):
-        scene = Scene(goal=Pose2D(1.0, 0.0, 0.0), obstacles=(Obstacle(2.0, float(rng.uniform(-1, 1)), 0.2),),
-                      ball=Obstacle(1.2, 0.0, 0.075) if i % 2 else None)
+        scene = Scene(
+            goal=Pose2D(1.0, 0.0, 0.0),
+            obstacles=(Obstacle(2.0, float(rng.uniform(-1, 1)), 0.2),),
+            ball=Obstacle(1.2, 0.0, 0.075) if i % 2 else None,
+        )
         backend.reset(scene, rng)
     after_resets = _rss_mb()
     for _ in range(10):

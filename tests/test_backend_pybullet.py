@@ -46,8 +46,7 @@ def test_env_checkers_pass():
 
 
 def test_render_rgb_frame():
-    env = FootstepEnv(backend={"name": "pybullet", "render_size": [160, 120]}, obstacles=True,
-                      render_mode="rgb_array")
+    env = FootstepEnv(backend={"name": "pybullet", "render_size": [160, 120]}, obstacles=True, render_mode="rgb_array")
     try:
         env.reset(seed=3)
         frame = env.render()
@@ -166,8 +165,9 @@ def test_blow_up_is_a_sim_error_with_finite_observation():
                     pybullet.resetBaseVelocity(sim.robot_id, kick, [0, 0, 0], physicsClientId=sim.client)
                     sim.advance(1)
             else:
-                pybullet.resetBasePositionAndOrientation(sim.robot_id, [0, 0, 1e4], [0, 0, 0, 1],
-                                                         physicsClientId=sim.client)
+                pybullet.resetBasePositionAndOrientation(
+                    sim.robot_id, [0, 0, 1e4], [0, 0, 0, 1], physicsClientId=sim.client
+                )
             assert sim.sim_error() is not None or env.unwrapped.backend._status()[0] is not None
             obs, reward, term, trunc, info = env.step(FORWARD)
             assert term and info["outcome"] == "sim_error", info["outcome"]
@@ -195,8 +195,11 @@ def test_obstacle_contact_is_reported_and_does_not_end_the_episode():
 
 def test_obstacles_and_ball_are_placed(backend):
     sim, c = backend.sim, backend.sim.client
-    scene = Scene(goal=Pose2D(3.0, 0.0, 0.0), obstacles=(Obstacle(1.0, 0.5, 0.2), Obstacle(2.0, -0.5, 0.3)),
-                  ball=Obstacle(1.5, 0.0, 0.075))
+    scene = Scene(
+        goal=Pose2D(3.0, 0.0, 0.0),
+        obstacles=(Obstacle(1.0, 0.5, 0.2), Obstacle(2.0, -0.5, 0.3)),
+        ball=Obstacle(1.5, 0.0, 0.075),
+    )
     backend.reset(scene, np.random.default_rng(0))
     assert len(sim.obstacle_ids) == 3
     pos = [pybullet.getBasePositionAndOrientation(b, physicsClientId=c)[0] for b in sim.obstacle_ids]
@@ -219,15 +222,21 @@ def test_obstacle_bodies_take_each_episodes_radius_and_stay_few(backend):
     earlier pool kept one body per radius ever seen)."""
     sim, c = backend.sim, backend.sim.client
     probe_radius = 0.01
-    probe = pybullet.createMultiBody(0, pybullet.createCollisionShape(pybullet.GEOM_SPHERE, radius=probe_radius,
-                                                                       physicsClientId=c), -1, [0, 0, -50],
-                                     physicsClientId=c)
+    probe = pybullet.createMultiBody(
+        0,
+        pybullet.createCollisionShape(pybullet.GEOM_SPHERE, radius=probe_radius, physicsClientId=c),
+        -1,
+        [0, 0, -50],
+        physicsClientId=c,
+    )
     rng = np.random.default_rng(5)
     counts = []
     try:
         for episode in range(60):
-            obstacles = tuple(Obstacle(float(x), float(y), float(r)) for x, y, r in
-                              zip(rng.uniform(1, 3, 3), rng.uniform(-2, 2, 3), rng.uniform(0.05, 0.35, 3)))
+            obstacles = tuple(
+                Obstacle(float(x), float(y), float(r))
+                for x, y, r in zip(rng.uniform(1, 3, 3), rng.uniform(-2, 2, 3), rng.uniform(0.05, 0.35, 3))
+            )
             ball = Obstacle(float(rng.uniform(1, 3)), float(rng.uniform(-2, 2)), float(rng.uniform(0.05, 0.1)))
             backend.reset(Scene(goal=Pose2D(5.0, 0.0, 0.0), obstacles=obstacles, ball=ball), rng)
             counts.append(pybullet.getNumBodies(physicsClientId=c))
@@ -237,7 +246,11 @@ def test_obstacle_bodies_take_each_episodes_radius_and_stay_few(backend):
                 gap = float(rng.uniform(0.01, 0.05))
                 angle = float(rng.uniform(-np.pi, np.pi))
                 z = obstacle.r if is_ball else 0.3
-                at = [obstacle.x + (obstacle.r + gap) * np.cos(angle), obstacle.y + (obstacle.r + gap) * np.sin(angle), z]
+                at = [
+                    obstacle.x + (obstacle.r + gap) * np.cos(angle),
+                    obstacle.y + (obstacle.r + gap) * np.sin(angle),
+                    z,
+                ]
                 pybullet.resetBasePositionAndOrientation(probe, at, [0, 0, 0, 1], physicsClientId=c)
                 distance = pybullet.getClosestPoints(body, probe, 0.2, physicsClientId=c)[0][8]
                 assert distance == pytest.approx(gap - probe_radius, abs=1e-4), (episode, obstacle, is_ball)
@@ -270,8 +283,11 @@ def test_create_reset_close_cycles_do_not_leak(backend):
     before = _rss_mb()
     rng = np.random.default_rng(0)
     for i in range(200):
-        scene = Scene(goal=Pose2D(1.0, 0.0, 0.0), obstacles=(Obstacle(2.0, float(rng.uniform(-1, 1)), 0.2),),
-                      ball=Obstacle(1.2, 0.0, 0.075) if i % 2 else None)
+        scene = Scene(
+            goal=Pose2D(1.0, 0.0, 0.0),
+            obstacles=(Obstacle(2.0, float(rng.uniform(-1, 1)), 0.2),),
+            ball=Obstacle(1.2, 0.0, 0.075) if i % 2 else None,
+        )
         backend.reset(scene, rng)
     after_resets = _rss_mb()
     paths = []
@@ -292,8 +308,9 @@ def test_obstacle_contact_means_touching_not_merely_near(backend):
     where ``getContactPoints`` already lists points that are still apart."""
     near_but_apart = 0
     for x in np.arange(0.197, 0.184, -0.0005):  # the first touch is at x ≈ 0.190
-        backend.reset(Scene(goal=Pose2D(1.0, 0.0, 0.0), obstacles=(Obstacle(float(x), 0.0, 0.1),)),
-                      np.random.default_rng(0))
+        backend.reset(
+            Scene(goal=Pose2D(1.0, 0.0, 0.0), obstacles=(Obstacle(float(x), 0.0, 0.1),)), np.random.default_rng(0)
+        )
         sim = backend.sim
         ob = sim.obstacle_ids[0]
         closest = pybullet.getClosestPoints(sim.robot_id, ob, 0.05, physicsClientId=sim.client)
@@ -326,8 +343,9 @@ def test_base_tilt_from_the_quaternion_matches_the_rotation_matrix(backend):
             for _ in range(300):
                 q = rng.normal(size=4)
                 position = pybullet.getBasePositionAndOrientation(sim.robot_id, physicsClientId=sim.client)[0]
-                pybullet.resetBasePositionAndOrientation(sim.robot_id, position, (q / np.linalg.norm(q)).tolist(),
-                                                         physicsClientId=sim.client)
+                pybullet.resetBasePositionAndOrientation(
+                    sim.robot_id, position, (q / np.linalg.norm(q)).tolist(), physicsClientId=sim.client
+                )
                 np.testing.assert_allclose(sim.base_tilt(), fused_roll_pitch(sim.base_pose()[1]), atol=1e-9)
     finally:
         sim._com_rot, sim._com_rows = saved
@@ -345,8 +363,9 @@ def test_reset_stands_on_flat_soles_like_mujoco(backend):
     spec = backend.robot
     for side in ("left", "right"):
         foot, offset = spec.sole(side)
-        state = pybullet.getLinkState(sim.robot_id, sim.link_index[foot], computeForwardKinematics=1,
-                                      physicsClientId=sim.client)
+        state = pybullet.getLinkState(
+            sim.robot_id, sim.link_index[foot], computeForwardKinematics=1, physicsClientId=sim.client
+        )
         rotation = np.array(pybullet.getMatrixFromQuaternion(state[5])).reshape(3, 3)
         assert abs(rotation[2, 0]) < 5e-3 and abs(rotation[2, 1]) < 5e-3  # level: no pitch, no roll
         sole = np.asarray(state[4]) + rotation @ np.asarray(offset)
@@ -361,8 +380,14 @@ def test_reset_stands_on_flat_soles_like_mujoco(backend):
     assert sim.base_tilt()[1] == pytest.approx(expected_pitch, abs=0.015)
 
 
-SERVO = {"name": "pybullet", "motor": "servo", "armature_scale": 1.0, "servo_kp_scale": 2.0,
-         "servo_damping_scale": 0.5, "servo_kv": 3.0}
+SERVO = {
+    "name": "pybullet",
+    "motor": "servo",
+    "armature_scale": 1.0,
+    "servo_kp_scale": 2.0,
+    "servo_damping_scale": 0.5,
+    "servo_kv": 3.0,
+}
 
 
 def _pybullet_backend(options):
@@ -415,13 +440,21 @@ def test_armature_adds_to_the_joints_mass_matrix_diagonal():
         for b in (plain, servo):
             b.reset(EMPTY, np.random.default_rng(0))
             sim = b.sim
-            q = [s[0] for s in pybullet.getJointStates(sim.robot_id, range(pybullet.getNumJoints(sim.robot_id, physicsClientId=sim.client)),
-                                                       physicsClientId=sim.client)]
+            q = [
+                s[0]
+                for s in pybullet.getJointStates(
+                    sim.robot_id,
+                    range(pybullet.getNumJoints(sim.robot_id, physicsClientId=sim.client)),
+                    physicsClientId=sim.client,
+                )
+            ]
             matrices.append((np.array(pybullet.calculateMassMatrix(sim.robot_id, q, physicsClientId=sim.client)), sim))
         (m_plain, sim_plain), (m_servo, _) = matrices
         for name in ("LAnkleRoll", "RAnkleRoll"):
             i = 6 + sim_plain.joint_index[name]  # 6 base DoF first
-            assert m_servo[i, i] - m_plain[i, i] == pytest.approx(scale * plain.robot.joint(name).servo.armature, rel=1e-6)
+            assert m_servo[i, i] - m_plain[i, i] == pytest.approx(
+                scale * plain.robot.joint(name).servo.armature, rel=1e-6
+            )
     finally:
         plain.close()
         servo.close()

@@ -73,8 +73,9 @@ def test_hand_computed_box_circle_cases():
 
 
 def _make_backend(**options) -> Pymunk2DBackend:
-    return Pymunk2DBackend(build_robot(load_preset("robot", "wolfgang")), build_walk(load_preset("walk", "pymunk")),
-                           **options)
+    return Pymunk2DBackend(
+        build_robot(load_preset("robot", "wolfgang")), build_walk(load_preset("walk", "pymunk")), **options
+    )
 
 
 def _pymunk_double_step_collides(backend: Pymunk2DBackend, before, after_first, after_second) -> bool:
@@ -90,9 +91,14 @@ def _pymunk_double_step_collides(backend: Pymunk2DBackend, before, after_first, 
         space.reindex_shapes_for_body(shape.body)
         return any(h.shape.body is space.static_body for h in space.shape_query(shape))
 
-    checks = [(foot, mean_pose(before.right, after_first.right)), (foot, after_first.right),
-              (trunk, after_first.nav_pose), (foot, mean_pose(after_first.left, after_second.left)),
-              (foot, after_second.left), (trunk, after_second.nav_pose)]
+    checks = [
+        (foot, mean_pose(before.right, after_first.right)),
+        (foot, after_first.right),
+        (trunk, after_first.nav_pose),
+        (foot, mean_pose(after_first.left, after_second.left)),
+        (foot, after_second.left),
+        (trunk, after_second.nav_pose),
+    ]
     return any(hits(shape, pose) for shape, pose in checks)
 
 
@@ -104,7 +110,9 @@ def test_backend_collisions_match_pymunk_shape_queries():
     for episode in range(150):
         backend.reset(sampler.sample(rng), np.random.default_rng(episode))
         if episode % 3 == 0:
-            backend.apply_randomization({"footstep_noise_x": 0.02, "footstep_noise_y": 0.02, "footstep_noise_theta": 0.1})
+            backend.apply_randomization(
+                {"footstep_noise_x": 0.02, "footstep_noise_y": 0.02, "footstep_noise_theta": 0.1}
+            )
         for _ in range(30):
             before = backend.feet
             result = backend.execute(DoubleStep.from_action(rng.uniform(-1, 1, 6), backend.robot.step_limits))
@@ -123,8 +131,16 @@ def _numpy_rays(pose, obstacles, n_rays, max_range):
     k = np.arange(n_rays) * (2.0 * math.pi / n_rays)
     base = np.stack([np.cos(k), np.sin(k)])
     c, s = math.cos(pose.theta), math.sin(pose.theta)
-    rel = np.array([[c * (o.x - pose.x) + s * (o.y - pose.y), -s * (o.x - pose.x) + c * (o.y - pose.y),
-                     (o.x - pose.x) ** 2 + (o.y - pose.y) ** 2 - o.r * o.r] for o in obstacles])
+    rel = np.array(
+        [
+            [
+                c * (o.x - pose.x) + s * (o.y - pose.y),
+                -s * (o.x - pose.x) + c * (o.y - pose.y),
+                (o.x - pose.x) ** 2 + (o.y - pose.y) ** 2 - o.r * o.r,
+            ]
+            for o in obstacles
+        ]
+    )
     proj = rel[:, :2] @ base
     disc = proj * proj - rel[:, 2:3]
     inside = rel[:, 2:3] <= 0.0
@@ -191,7 +207,9 @@ def test_ray_special_cases():
     # the observation maps rays through tanh(d / ray_scale)
     cfg = nav.NavTaskConfig(obstacles=True, ray_scale=2.0)
     obs = nav.observation(pose, Scene(Pose2D(1, 0, 0), (behind,)), ([0.0] * 6, [0.0] * 6), cfg)
-    assert obs[17 + 18] == pytest.approx(math.tanh(0.9), abs=1e-6) and obs[17] == pytest.approx(math.tanh(2.5), abs=1e-6)
+    assert obs[17 + 18] == pytest.approx(math.tanh(0.9), abs=1e-6) and obs[17] == pytest.approx(
+        math.tanh(2.5), abs=1e-6
+    )
 
 
 def test_unrolled_overlap_band_matches_the_axis_loop():

@@ -19,9 +19,17 @@ def test_replay_covers_every_env_tick():
     # Independent count: the walk engine's trajectory lengths for the same double steps.
     backend = make_backend("mujoco")
     try:
-        expected = sum(len(backend.engine.double_step(DoubleStep.from_action(PATTERN[i % len(PATTERN)],
-                                                                            backend.robot.step_limits)).joint_targets)
-                       for i in range(repeats)) * backend.substeps
+        expected = (
+            sum(
+                len(
+                    backend.engine.double_step(
+                        DoubleStep.from_action(PATTERN[i % len(PATTERN)], backend.robot.step_limits)
+                    ).joint_targets
+                )
+                for i in range(repeats)
+            )
+            * backend.substeps
+        )
     finally:
         backend.close()
     assert ticks == expected

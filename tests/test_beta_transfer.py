@@ -9,8 +9,16 @@ from stable_baselines3 import PPO
 from footsim.env import FootstepEnv
 from footsim.rl.beta import BetaActorCriticPolicy, BetaDistribution
 
-TINY = ["train.total_timesteps=128", "train.n_envs=2", "agent.n_steps=64", "agent.batch_size=64",
-        "agent.n_epochs=1", "train.progress_bar=false", "train.tensorboard=false", "eval.after_train=false"]
+TINY = [
+    "train.total_timesteps=128",
+    "train.n_envs=2",
+    "agent.n_steps=64",
+    "agent.batch_size=64",
+    "agent.n_epochs=1",
+    "train.progress_bar=false",
+    "train.tensorboard=false",
+    "eval.after_train=false",
+]
 
 
 def test_log_prob_and_entropy_match_torch_beta_rescaled():
@@ -22,7 +30,8 @@ def test_log_prob_and_entropy_match_torch_beta_rescaled():
     beta = th.nn.functional.softplus(params[:, 3:]) + 1
     reference = th.distributions.TransformedDistribution(
         th.distributions.Beta(alpha, beta),
-        th.distributions.AffineTransform(th.tensor(low, dtype=th.float32), th.tensor(high - low, dtype=th.float32)))
+        th.distributions.AffineTransform(th.tensor(low, dtype=th.float32), th.tensor(high - low, dtype=th.float32)),
+    )
     actions = reference.sample()
     np.testing.assert_allclose(dist.log_prob(actions), reference.log_prob(actions).sum(-1), rtol=1e-5, atol=1e-5)
     # entropy of a·X + b is H(X) + log|a|
@@ -57,8 +66,9 @@ def test_beta_policy_learns_saves_and_loads(tmp_path):
 
 def _train(tmp_path, name, *overrides):
     run_dir = tmp_path / name
-    proc = subprocess.run(["footsim-train", *TINY, *overrides, f"hydra.run.dir={run_dir}"],
-                          capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        ["footsim-train", *TINY, *overrides, f"hydra.run.dir={run_dir}"], capture_output=True, text=True, timeout=300
+    )
     return run_dir, proc
 
 
@@ -71,8 +81,9 @@ def test_init_from_copies_weights_and_records_the_parent(tmp_path, agent):
     from footsim.rl.transfer import init_from_run
 
     cls = BetaActorCriticPolicy if agent == "ppo_beta" else "MlpPolicy"
-    from footsim.rl.common import policy_kwargs
     from omegaconf import OmegaConf
+
+    from footsim.rl.common import policy_kwargs
 
     agent_cfg = OmegaConf.load(f"conf/agent/{agent}.yaml")
     fresh = PPO(cls, FootstepEnv(), policy_kwargs=policy_kwargs(agent_cfg), device="cpu", seed=3)
@@ -128,7 +139,8 @@ def test_obstacle_parent_seeds_a_path_hint_run_but_not_an_incompatible_layout(tm
     parent = PPO("MlpPolicy", parent_env, device="cpu", seed=0)
     parent.save(tmp_path / "model.zip")
     (tmp_path / "config.yaml").write_text(
-        "backend: {name: pymunk}\ntask: {name: nav_obstacles, obstacles: true, n_rays: 36}\n")
+        "backend: {name: pymunk}\ntask: {name: nav_obstacles, obstacles: true, n_rays: 36}\n"
+    )
     hint_task = dict(obstacle_task, path_hint=True)
     child_env = FootstepEnv(task=hint_task)
     child = PPO("MlpPolicy", child_env, device="cpu", seed=1)
@@ -146,7 +158,8 @@ def test_obstacle_parent_seeds_a_path_hint_run_but_not_an_incompatible_layout(tm
     imu_parent = PPO("MlpPolicy", FootstepEnv(task=dict(obstacle_task, observe_imu=True)), device="cpu", seed=0)
     imu_parent.save(imu_dir / "model.zip")
     (imu_dir / "config.yaml").write_text(
-        "backend: {name: pymunk}\ntask: {name: nav_obstacles, obstacles: true, n_rays: 36, observe_imu: true}\n")
+        "backend: {name: pymunk}\ntask: {name: nav_obstacles, obstacles: true, n_rays: 36, observe_imu: true}\n"
+    )
     wide_task = dict(obstacle_task, path_hint=True, n_rays=40)  # 59-D: larger, but rays differ
     wide = PPO("MlpPolicy", FootstepEnv(task=wide_task), device="cpu", seed=1)
     with pytest.raises(ValueError, match="goal_and_actions\\+rays\\+imu"):

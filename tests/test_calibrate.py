@@ -11,9 +11,16 @@ from footsim.walkcheck import make_backend, run_sequence, standard_sequences
 
 
 def _model(coef, intercept=(0, 0, 0), std=(0, 0, 0), fall=None, names=("dx", "dy", "dtheta")):
-    return {"format": calibrate.FORMAT, "version": calibrate.VERSION, "features": list(names),
-            "outputs": ["dx", "dy", "dtheta"], "coef": np.asarray(coef, float).tolist(),
-            "intercept": list(intercept), "residual_std": list(std), "fall": fall}
+    return {
+        "format": calibrate.FORMAT,
+        "version": calibrate.VERSION,
+        "features": list(names),
+        "outputs": ["dx", "dy", "dtheta"],
+        "coef": np.asarray(coef, float).tolist(),
+        "intercept": list(intercept),
+        "residual_std": list(std),
+        "fall": fall,
+    }
 
 
 def test_fit_recovers_a_known_linear_model_and_fall_logistic():
@@ -29,8 +36,9 @@ def test_fit_recovers_a_known_linear_model_and_fall_logistic():
     p = 1 / (1 + np.exp(-(np.abs(action) @ w_true + b_true)))
     fell = rng.random(n) < p
     executed[fell] = np.nan
-    model = calibrate.fit({"action": action, "predicted": predicted, "executed": executed, "fell": fell.astype(float)},
-                          names=FEATURES)
+    model = calibrate.fit(
+        {"action": action, "predicted": predicted, "executed": executed, "fell": fell.astype(float)}, names=FEATURES
+    )
     np.testing.assert_allclose(model["coef"], coef, atol=0.02)
     np.testing.assert_allclose(model["intercept"], intercept, atol=0.01)
     np.testing.assert_allclose(model["residual_std"], sigma, rtol=0.1)
@@ -38,8 +46,9 @@ def test_fit_recovers_a_known_linear_model_and_fall_logistic():
     np.testing.assert_allclose(model["fall"]["coef"], w_true, atol=0.4)
     assert model["fall"]["intercept"] == pytest.approx(b_true, abs=0.5)
     loaded = ExecutionModel(json.loads(json.dumps(model)), noise=False)  # the payload round-trips
-    np.testing.assert_allclose(loaded.mean(predicted[0]), calibrate.features(predicted[0]) @ coef.T + intercept,
-                               atol=0.02)
+    np.testing.assert_allclose(
+        loaded.mean(predicted[0]), calibrate.features(predicted[0]) @ coef.T + intercept, atol=0.02
+    )
 
 
 def _forward(backend, n=10):
@@ -84,13 +93,16 @@ def test_env_with_execution_model(tmp_path):
     env.close()
 
 
-@pytest.mark.parametrize("content, message", [
-    ("{not json", "not valid JSON"),
-    (json.dumps({"coef": [[1, 0, 0]] * 3}), "not a footsim execution model"),
-    (json.dumps({**_model(np.eye(3)), "coef": [[1, 0], [0, 1]]}), "coef must be 3 x 3"),
-    (json.dumps({**_model(np.eye(3)), "features": ["dx", "dy", "speed"]}), "unknown features"),
-    (json.dumps({**_model(np.eye(3)), "residual_std": [-1, 0, 0]}), "residual_std >= 0"),
-])
+@pytest.mark.parametrize(
+    "content, message",
+    [
+        ("{not json", "not valid JSON"),
+        (json.dumps({"coef": [[1, 0, 0]] * 3}), "not a footsim execution model"),
+        (json.dumps({**_model(np.eye(3)), "coef": [[1, 0], [0, 1]]}), "coef must be 3 x 3"),
+        (json.dumps({**_model(np.eye(3)), "features": ["dx", "dy", "speed"]}), "unknown features"),
+        (json.dumps({**_model(np.eye(3)), "residual_std": [-1, 0, 0]}), "residual_std >= 0"),
+    ],
+)
 def test_bad_execution_model_files_fail_clearly(tmp_path, content, message):
     path = tmp_path / "bad.json"
     path.write_text(content)
@@ -99,7 +111,10 @@ def test_bad_execution_model_files_fail_clearly(tmp_path, content, message):
     from footsim import config as fconf
 
     with pytest.raises(ValueError, match=message):
-        fconf.build_backend({"name": "pymunk", "execution_model": str(path)}, fconf.build_robot("wolfgang"),
-                            fconf.build_walk(fconf.load_preset("walk", "pymunk")))
+        fconf.build_backend(
+            {"name": "pymunk", "execution_model": str(path)},
+            fconf.build_robot("wolfgang"),
+            fconf.build_walk(fconf.load_preset("walk", "pymunk")),
+        )
     with pytest.raises(FileNotFoundError, match="execution model file not found"):
         ExecutionModel.load(tmp_path / "missing.json")

@@ -10,8 +10,16 @@ import pytest
 
 pytestmark = pytest.mark.slow
 
-TINY = ["train.total_timesteps=256", "train.n_envs=2", "agent.n_steps=64", "agent.batch_size=64",
-        "agent.n_epochs=1", "train.checkpoint_freq=128", "train.progress_bar=false", "eval.n_scenes=5"]
+TINY = [
+    "train.total_timesteps=256",
+    "train.n_envs=2",
+    "agent.n_steps=64",
+    "agent.batch_size=64",
+    "agent.n_epochs=1",
+    "train.checkpoint_freq=128",
+    "train.progress_bar=false",
+    "eval.n_scenes=5",
+]
 
 
 def run(*args, cwd=None, check=True):
@@ -44,24 +52,38 @@ def test_scenes_train_eval_resume(tmp_path):
     run_dir = tmp_path / "run"
     out = run("footsim-train", *TINY, "task=nav_obstacles", f"hydra.run.dir={run_dir}").stdout
     assert "| Approach | Success |" in out
-    for name in ("model.zip", "config.yaml", "vecnormalize.pkl", "checkpoints/latest.zip", "eval/summary.json",
-                 "eval/episodes.csv", "eval/goals.png"):
+    for name in (
+        "model.zip",
+        "config.yaml",
+        "vecnormalize.pkl",
+        "checkpoints/latest.zip",
+        "eval/summary.json",
+        "eval/episodes.csv",
+        "eval/goals.png",
+    ):
         assert (run_dir / name).is_file(), name
     assert list((run_dir / "tb").iterdir()), "tensorboard logs"
     from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
     events = EventAccumulator(str(next((run_dir / "tb").iterdir())))
     events.Reload()
-    rates = {tag: events.Scalars(tag)[-1].value for tag in events.Tags()["scalars"] if tag.startswith("rollout/") and tag.endswith("_rate")}
+    rates = {
+        tag: events.Scalars(tag)[-1].value
+        for tag in events.Tags()["scalars"]
+        if tag.startswith("rollout/") and tag.endswith("_rate")
+    }
     assert set(rates) == {f"rollout/{o}_rate" for o in ("success", "timeout", "fall", "collision", "sim_error")}
-    assert sum(rates.values()) == pytest.approx(1.0, abs=1e-6) and rates["rollout/collision_rate"] > 0  # random steps collide
+    assert (
+        sum(rates.values()) == pytest.approx(1.0, abs=1e-6) and rates["rollout/collision_rate"] > 0
+    )  # random steps collide
     summary = json.loads((run_dir / "eval/summary.json").read_text(), parse_constant=_reject_non_json)
     assert summary["episodes"] == 5
     assert sum(summary[k] for k in ("success", "timeout", "fall", "collision", "sim_error")) == pytest.approx(1)
 
     eval_dir = tmp_path / "eval"
-    out = run("footsim-eval", f"run={run_dir}", f"scenes={scenes}", "noise=localization",
-              f"hydra.run.dir={eval_dir}").stdout
+    out = run(
+        "footsim-eval", f"run={run_dir}", f"scenes={scenes}", "noise=localization", f"hydra.run.dir={eval_dir}"
+    ).stdout
     assert "noise=localization" in out
     rows = (eval_dir / "episodes.csv").read_text().strip().splitlines()
     assert len(rows) == 1 + 4
@@ -70,8 +92,9 @@ def test_scenes_train_eval_resume(tmp_path):
     # resume: extend the budget by editing nothing but the saved total, then continue
     cfg = (run_dir / "config.yaml").read_text().replace("total_timesteps: 256", "total_timesteps: 512")
     (run_dir / "config.yaml").write_text(cfg)
-    out = run("footsim-train", f"resume={run_dir}", "agent.learning_rate=0.5",
-              f"hydra.run.dir={tmp_path / 'resume_log'}").stdout
+    out = run(
+        "footsim-train", f"resume={run_dir}", "agent.learning_rate=0.5", f"hydra.run.dir={tmp_path / 'resume_log'}"
+    ).stdout
     assert "resuming" in out
     assert "ignoring agent.learning_rate=0.5" in out  # the saved config decides, and it says so
     info = json.loads((run_dir / "train_info.json").read_text())
@@ -82,8 +105,14 @@ def test_baseline_evaluation_applies_the_randomization_preset(tmp_path):
     finals = {}
     for preset in ("none", "default"):
         out_dir = tmp_path / preset
-        out = run("footsim-eval", "controller=velocity", "n_scenes=3", "plot=false", f"randomization={preset}",
-                  f"hydra.run.dir={out_dir}").stdout
+        out = run(
+            "footsim-eval",
+            "controller=velocity",
+            "n_scenes=3",
+            "plot=false",
+            f"randomization={preset}",
+            f"hydra.run.dir={out_dir}",
+        ).stdout
         assert ("randomization=default" in out) == (preset == "default")
         rows = (out_dir / "episodes.csv").read_text().splitlines()[1:]
         finals[preset] = [row.split(",")[6:9] for row in rows]  # final_x, final_y, final_theta
@@ -91,12 +120,15 @@ def test_baseline_evaluation_applies_the_randomization_preset(tmp_path):
     assert finals["none"] != finals["default"]
 
 
-@pytest.mark.parametrize("override,message", [
-    ("backend=bogus", "backend"),
-    ("train.n_envs=0", "train.n_envs must be a positive integer"),
-    ("noise.sigma_x=-0.1", "noise.sigma_x must be a number >= 0"),
-    ("task.scenes.ball_radius=-0.1", "task.scenes.ball_radius must be a positive number"),
-])
+@pytest.mark.parametrize(
+    "override,message",
+    [
+        ("backend=bogus", "backend"),
+        ("train.n_envs=0", "train.n_envs must be a positive integer"),
+        ("noise.sigma_x=-0.1", "noise.sigma_x must be a number >= 0"),
+        ("task.scenes.ball_radius=-0.1", "task.scenes.ball_radius must be a positive number"),
+    ],
+)
 def test_bad_config_fails_at_start_naming_the_key(tmp_path, override, message):
     proc = run("footsim-train", *TINY, override, f"hydra.run.dir={tmp_path}", check=False)
     assert proc.returncode != 0
@@ -108,16 +140,22 @@ def test_scenes_cli_rejects_bad_n(tmp_path):
     assert proc.returncode != 0 and "n must be > 0" in proc.stderr
 
 
-@pytest.mark.parametrize("command", [
-    ["footsim-walkcheck", "backends=mujoco,bogus"],
-    ["footsim-calibrate", "backend=bogus", "out=OUT/cal.json"],
-    ["footsim-transfer-matrix", "backends=pymunk,bogus", "out=OUT/matrix"],
-])
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["footsim-walkcheck", "backends=mujoco,bogus"],
+        ["footsim-calibrate", "backend=bogus", "out=OUT/cal.json"],
+        ["footsim-transfer-matrix", "backends=pymunk,bogus", "out=OUT/matrix"],
+    ],
+)
 def test_unknown_backend_on_the_command_line_is_named_before_any_work(tmp_path, command):
     proc = run(*[c.replace("OUT", str(tmp_path)) for c in command], check=False)
     assert proc.returncode != 0
-    assert proc.stderr.strip().splitlines()[-1].endswith(
-        "unknown backend(s) bogus; valid backends: pymunk, mujoco, dm_control, pybullet")
+    assert (
+        proc.stderr.strip()
+        .splitlines()[-1]
+        .endswith("unknown backend(s) bogus; valid backends: pymunk, mujoco, dm_control, pybullet")
+    )
     assert "Traceback" not in proc.stderr
     assert list(tmp_path.iterdir()) == []  # nothing written
 
@@ -152,10 +190,21 @@ def test_ctrl_c_saves_a_checkpoint_and_exits_130_without_a_traceback(tmp_path, v
     # A shell without job control starts background jobs with SIGINT ignored, and a child
     # inherits that (Python then never raises KeyboardInterrupt): give it the default handler.
     # checkpoint_freq=2 saves at almost every step, so the signal often arrives during a save.
-    proc = subprocess.Popen(["footsim-train", *TINY, "train.total_timesteps=10000000", "train.checkpoint_freq=2",
-                             f"train.vec_env={vec_env}", f"hydra.run.dir={tmp_path}"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    proc = subprocess.Popen(
+        [
+            "footsim-train",
+            *TINY,
+            "train.total_timesteps=10000000",
+            "train.checkpoint_freq=2",
+            f"train.vec_env={vec_env}",
+            f"hydra.run.dir={tmp_path}",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
     latest = tmp_path / "checkpoints" / "latest.json"
     deadline = time.monotonic() + 300
     while not latest.exists() and proc.poll() is None and time.monotonic() < deadline:
@@ -184,11 +233,18 @@ def test_conf_is_found_from_a_built_wheel(tmp_path):
         names = zf.namelist()
         assert "footsim/conf/config.yaml" in names and "footsim/conf/task/nav.yaml" in names
         zf.extractall(tmp_path / "site")
-    code = ("import footsim.config as c, footsim.env as e; print(c.conf_dir());"
-            "env = e.FootstepEnv(obstacles=True); print(env.observation_space.shape)")
+    code = (
+        "import footsim.config as c, footsim.env as e; print(c.conf_dir());"
+        "env = e.FootstepEnv(obstacles=True); print(env.observation_space.shape)"
+    )
     proc = run(sys.executable, "-c", code, cwd=tmp_path)
     # PYTHONPATH makes the unpacked wheel shadow the editable install
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path,
-                          env={"PYTHONPATH": str(tmp_path / "site"), "PATH": "/usr/bin:/bin"})
+    proc = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        env={"PYTHONPATH": str(tmp_path / "site"), "PATH": "/usr/bin:/bin"},
+    )
     assert proc.returncode == 0, proc.stderr
     assert str(tmp_path / "site" / "footsim" / "conf") in proc.stdout and "(53,)" in proc.stdout

@@ -126,18 +126,26 @@ except ImportError as err:
 """
 
 
-@pytest.mark.parametrize("backend, missing, extra", [
-    ("mujoco", "mujoco", "mujoco"),
-    ("dm_control", "dm_control", "dm_control"),
-    ("dm_control", "dm_control,mujoco", "dm_control"),
-    ("pybullet", "pybullet", "pybullet"),
-])
+@pytest.mark.parametrize(
+    "backend, missing, extra",
+    [
+        ("mujoco", "mujoco", "mujoco"),
+        ("dm_control", "dm_control", "dm_control"),
+        ("dm_control", "dm_control,mujoco", "dm_control"),
+        ("pybullet", "pybullet", "pybullet"),
+    ],
+)
 def test_missing_simulator_names_the_extra_to_install(backend, missing, extra):
     import subprocess
     import sys
 
-    out = subprocess.run([sys.executable, "-c", _WITHOUT_PACKAGES, backend, missing], capture_output=True,
-                         text=True, check=True, timeout=300).stdout
+    out = subprocess.run(
+        [sys.executable, "-c", _WITHOUT_PACKAGES, backend, missing],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=300,
+    ).stdout
     assert out.startswith("ImportError:") and f"pip install 'footsim[{extra}]'" in out
     assert f"{missing.split(',')[0]} package" in out.replace("'", "")  # names the missing package
 

@@ -3,7 +3,6 @@ import math
 import numpy as np
 import pytest
 
-from footsim.geometry import Pose2D
 from footsim.walk import DoubleStep, Footstep, FootstepGeometry, Side, StepLimits, WalkParams
 
 LIMITS = StepLimits(0.156, 0.103, 0.764)
@@ -15,8 +14,9 @@ def test_action_scaling_and_clipping():
     np.testing.assert_allclose(ds.as_array(), [0.156, -0.0515, 0.191, 0.156, -0.103, 0.0])
 
 
-@pytest.mark.parametrize("bad", [[np.nan, 0, 0, 0, 0, 0], [0, 0, 0, np.inf, 0, 0], [np.inf, -np.inf, 0, 0, 0, 0],
-                                 [0, 0, 0, 0, 0, -np.inf]])
+@pytest.mark.parametrize(
+    "bad", [[np.nan, 0, 0, 0, 0, 0], [0, 0, 0, np.inf, 0, 0], [np.inf, -np.inf, 0, 0, 0, 0], [0, 0, 0, 0, 0, -np.inf]]
+)
 def test_non_finite_action_raises(bad):
     with pytest.raises(ValueError, match="NaN or inf"):
         DoubleStep.from_action(bad, LIMITS)
@@ -38,8 +38,12 @@ def test_landing_is_resting_pose_plus_step():
 
 def _corners(x, y, t, l=0.154, w=0.106):
     c, s = math.cos(t), math.sin(t)
-    return np.array([(x + c * dx - s * dy, y + s * dx + c * dy) for dx, dy in
-                     ((l / 2, w / 2), (-l / 2, w / 2), (-l / 2, -w / 2), (l / 2, -w / 2))])
+    return np.array(
+        [
+            (x + c * dx - s * dy, y + s * dx + c * dy)
+            for dx, dy in ((l / 2, w / 2), (-l / 2, w / 2), (-l / 2, -w / 2), (l / 2, -w / 2))
+        ]
+    )
 
 
 def _overlap_by_sampling(pose) -> bool:

@@ -6,8 +6,17 @@ import pytest
 from footsim.geometry import Pose2D, mean_pose, wrap_angle, wrap_angles
 
 
-@pytest.mark.parametrize("angle,expected", [(0.0, 0.0), (math.pi, math.pi), (-math.pi, math.pi),
-                                            (3 * math.pi, math.pi), (2 * math.pi + 0.1, 0.1), (-0.1, -0.1)])
+@pytest.mark.parametrize(
+    "angle,expected",
+    [
+        (0.0, 0.0),
+        (math.pi, math.pi),
+        (-math.pi, math.pi),
+        (3 * math.pi, math.pi),
+        (2 * math.pi + 0.1, 0.1),
+        (-0.1, -0.1),
+    ],
+)
 def test_wrap_angle_range(angle, expected):
     assert wrap_angle(angle) == pytest.approx(expected)
     assert wrap_angles(np.array([angle]))[0] == pytest.approx(expected)

@@ -4,7 +4,14 @@ import numpy as np
 import pytest
 
 from footsim.walk.ik import (
-    LEG_JOINT_NAMES, LegGeometry, leg_fk, leg_ik, leg_ik_rotation, legs_ik, rotation_from_rpy, rpy_from_rotation,
+    LEG_JOINT_NAMES,
+    LegGeometry,
+    leg_fk,
+    leg_ik,
+    leg_ik_rotation,
+    legs_ik,
+    rotation_from_rpy,
+    rpy_from_rotation,
 )
 
 LEG = LegGeometry()
@@ -27,7 +34,9 @@ def _random_joint_sets(rng, n):
 
 def test_joint_name_order():
     assert LEG_JOINT_NAMES[:3] == ("LHipYaw", "LHipRoll", "LHipPitch")
-    assert LEG_JOINT_NAMES[5] == "LAnkleRoll" and LEG_JOINT_NAMES[6] == "RHipYaw" and LEG_JOINT_NAMES[11] == "RAnkleRoll"
+    assert (
+        LEG_JOINT_NAMES[5] == "LAnkleRoll" and LEG_JOINT_NAMES[6] == "RHipYaw" and LEG_JOINT_NAMES[11] == "RAnkleRoll"
+    )
     assert len(LEG_JOINT_NAMES) == 12
 
 
@@ -68,7 +77,9 @@ def test_fk_of_ik_round_trip_over_random_reachable_targets(side):
     rng = np.random.default_rng(2)
     n = 2000
     sign = 1.0 if side == "left" else -1.0
-    pos = np.column_stack([rng.uniform(-0.12, 0.12, n), sign * 0.055 + rng.uniform(-0.1, 0.1, n), rng.uniform(-0.41, -0.25, n)])
+    pos = np.column_stack(
+        [rng.uniform(-0.12, 0.12, n), sign * 0.055 + rng.uniform(-0.1, 0.1, n), rng.uniform(-0.41, -0.25, n)]
+    )
     rpy = rng.uniform(-0.35, 0.35, size=(n, 3))
     q, reachable = leg_ik(pos, rpy, side, LEG)
     assert np.isfinite(q).all()
@@ -132,8 +143,14 @@ def test_compiled_both_legs_ik_reproduces_fk_in_any_trunk_frame(tilted_soles):
     rng = np.random.default_rng(11)
     n = 64
     q_true = {side: _random_joint_sets(rng, n) for side in SIDES}
-    trunk = np.vstack([rng.uniform(-1, 1, (2, n)), rng.uniform(0.3, 0.5, (1, n)),
-                       rng.uniform(-0.3, 0.3, (2, n)), rng.uniform(-np.pi, np.pi, (1, n))])
+    trunk = np.vstack(
+        [
+            rng.uniform(-1, 1, (2, n)),
+            rng.uniform(0.3, 0.5, (1, n)),
+            rng.uniform(-0.3, 0.3, (2, n)),
+            rng.uniform(-np.pi, np.pi, (1, n)),
+        ]
+    )
     Rt = rotation_from_rpy(trunk[3:].T)  # (n, 3, 3)
     world = {}
     for side in SIDES:
@@ -151,9 +168,9 @@ def test_compiled_both_legs_ik_reproduces_fk_in_any_trunk_frame(tilted_soles):
         p_local = np.einsum("nji,nj->ni", Rt, sole[:3].T - trunk[:3].T)
         R_local = np.transpose(Rt, (0, 2, 1)) @ rotation_from_rpy(sole[3:].T)
         q_numpy, reachable_numpy = leg_ik_rotation(p_local, R_local, LEG.side_sign(side), LEG)
-        np.testing.assert_allclose(q[:, 6 * k:6 * k + 6], q_numpy, atol=1e-12)
+        np.testing.assert_allclose(q[:, 6 * k : 6 * k + 6], q_numpy, atol=1e-12)
         both &= reachable_numpy
-        pos, rot = leg_fk(q[reachable, 6 * k:6 * k + 6], side, LEG)
+        pos, rot = leg_fk(q[reachable, 6 * k : 6 * k + 6], side, LEG)
         np.testing.assert_allclose(pos, p_local[reachable], atol=1e-9)
         np.testing.assert_allclose(rot, R_local[reachable], atol=1e-9)
     np.testing.assert_array_equal(reachable, both)

@@ -54,7 +54,7 @@ def _reference_ray_scan(pose, circles, n_rays, max_range, out):
         lo, hi = math.ceil(bearing - half), math.floor(bearing + half)
         if hi - lo >= n:
             lo, hi = 0, n - 1
-        for k in (range(lo, hi + 1) if lo >= 0 and hi < n else [k % n for k in range(lo, hi + 1)]):
+        for k in range(lo, hi + 1) if lo >= 0 and hi < n else [k % n for k in range(lo, hi + 1)]:
             proj = rx * cos_k[k] + ry * sin_k[k]
             disc = proj * proj - cc
             if disc >= 0.0:
@@ -106,17 +106,21 @@ def _reference_double_step_collides(backend, circles, before, after_first, after
     xs = (start_right[0], right[0], mid_left[0], end_left[0])
     ys = (start_right[1], right[1], mid_left[1], end_left[1])
     lo_x, hi_x, lo_y, hi_y = min(xs) - reach, max(xs) + reach, min(ys) - reach, max(ys) + reach
-    near = [(x, y, r) for x, y, r in circles
-            if x + r >= lo_x and x - r <= hi_x and y + r >= lo_y and y - r <= hi_y]
+    near = [(x, y, r) for x, y, r in circles if x + r >= lo_x and x - r <= hi_x and y + r >= lo_y and y - r <= hi_y]
     if not near:
         return False
 
     def swing(start, end, trunk):
         mid = mean_pose(start, end)
-        return (_reference_box_hits(*mid, *foot_half, near) or _reference_box_hits(*end, *foot_half, near)
-                or _reference_box_hits(*trunk, *trunk_half, near))
+        return (
+            _reference_box_hits(*mid, *foot_half, near)
+            or _reference_box_hits(*end, *foot_half, near)
+            or _reference_box_hits(*trunk, *trunk_half, near)
+        )
 
-    return swing(start_right, right, mean_pose(mid_left, right)) or swing(mid_left, end_left, mean_pose(end_left, right))
+    return swing(start_right, right, mean_pose(mid_left, right)) or swing(
+        mid_left, end_left, mean_pose(end_left, right)
+    )
 
 
 def _reference_observation(believed, scene, previous_actions, config, tilt=(0.0, 0.0, 0.0), hint=(0.0, 1.0)):
@@ -150,7 +154,10 @@ def _reference_land(geometry, left, x, y, theta):
     lim = geometry.limits
     x, y, theta = min(max(x, -lim.x), lim.x), min(max(y, -lim.y), lim.y), min(max(theta, -lim.theta), lim.theta)
     rest_y = geometry.foot_distance if left else -geometry.foot_distance
-    half_l, half_w = 0.5 * (geometry.foot_length + geometry.min_foot_gap), 0.5 * (geometry.foot_width + geometry.min_foot_gap)
+    half_l, half_w = (
+        0.5 * (geometry.foot_length + geometry.min_foot_gap),
+        0.5 * (geometry.foot_width + geometry.min_foot_gap),
+    )
     band = _overlap_band_y_reference(x, theta, half_l, half_w)
     interfered = band is not None and band[0] < rest_y + y < band[1]
     if interfered:
@@ -167,8 +174,12 @@ def _reference_execute(geometry, feet, double_step, perturb=None):
     x, y, theta, hit_second = _reference_land(geometry, True, *second)
     left = right.compose(Pose2D(x, y + geometry.foot_distance, theta))
     left = perturb(left) if perturb else left
-    return (FeetState(feet.left, right), FeetState(left, right), DoubleStep(done_first, Footstep(x, y, theta)),
-            int(hit_first) + int(hit_second))
+    return (
+        FeetState(feet.left, right),
+        FeetState(left, right),
+        DoubleStep(done_first, Footstep(x, y, theta)),
+        int(hit_first) + int(hit_second),
+    )
 
 
 def _reference_obstacle_term(pose, scene):
@@ -186,8 +197,13 @@ def _grazing_circles(rng, pose, n, count):
         along, r = rng.uniform(0.05, 5.5), rng.uniform(0.01, 0.5)
         offset = r + rng.choice([-1e-12, 1e-12, -1e-9, 1e-9, -1e-6, 1e-6, 0.0, 0.3 * r])
         side = rng.choice([-1.0, 1.0])
-        circles.append((pose[0] + along * math.cos(heading) - side * offset * math.sin(heading),
-                        pose[1] + along * math.sin(heading) + side * offset * math.cos(heading), r))
+        circles.append(
+            (
+                pose[0] + along * math.cos(heading) - side * offset * math.sin(heading),
+                pose[1] + along * math.sin(heading) + side * offset * math.cos(heading),
+                r,
+            )
+        )
     return circles
 
 
@@ -201,8 +217,10 @@ def _random_case(rng, i, n):
     elif kind == 1:
         circles = _grazing_circles(rng, pose, n, int(rng.integers(1, 6)))
     elif kind == 2:
-        circles = [tuple(rng.normal(0, 2.0, 2) + pose[:2]) + (float(rng.uniform(0.01, 3.0)),)
-                   for _ in range(int(rng.integers(0, 8)))]
+        circles = [
+            tuple(rng.normal(0, 2.0, 2) + pose[:2]) + (float(rng.uniform(0.01, 3.0)),)
+            for _ in range(int(rng.integers(0, 8)))
+        ]
     else:  # special positions relative to the pose
         r = float(rng.uniform(0.05, 1.0))
         phi = float(rng.uniform(-math.pi, math.pi))
@@ -247,17 +265,22 @@ def test_ray_special_cases_and_wrapper():
     expected = _reference_rays(pose, [(o.x, o.y, o.r) for o in obstacles], 36, 5.0)
     assert nav.ray_distances(pose, obstacles, 36, 5.0).tolist() == expected
     assert nav.ray_distances(Pose2D(0, 0, 0), obstacles, 36, 5.0).tolist() == _reference_rays(
-        (0.0, 0.0, 0.0), [(o.x, o.y, o.r) for o in obstacles], 36, 5.0)  # integer pose components
+        (0.0, 0.0, 0.0), [(o.x, o.y, o.r) for o in obstacles], 36, 5.0
+    )  # integer pose components
 
 
 # -- observation, reward, env -------------------------------------------------------------------
-@pytest.mark.parametrize("config", [
-    NavTaskConfig(obstacles=True),
-    NavTaskConfig(obstacles=True, n_rays=37, ray_range=2.0, ray_scale=2.0),
-    NavTaskConfig(obstacles=True, observe_imu=True, path_hint=True),
-    NavTaskConfig(obstacles=False, observe_imu=True),
-    NavTaskConfig(),
-], ids=["rays", "37rays", "rays_imu_hint", "imu", "plain"])
+@pytest.mark.parametrize(
+    "config",
+    [
+        NavTaskConfig(obstacles=True),
+        NavTaskConfig(obstacles=True, n_rays=37, ray_range=2.0, ray_scale=2.0),
+        NavTaskConfig(obstacles=True, observe_imu=True, path_hint=True),
+        NavTaskConfig(obstacles=False, observe_imu=True),
+        NavTaskConfig(),
+    ],
+    ids=["rays", "37rays", "rays_imu_hint", "imu", "plain"],
+)
 def test_observation_matches_the_python_reference(config):
     rng = np.random.default_rng(7)
     sampler = SceneSampler(obstacles=True)
@@ -295,11 +318,15 @@ def test_obstacle_reward_matches_the_python_reference():
     assert nav.nearest_obstacle_distance(Pose2D(), ()) == math.inf
 
 
-@pytest.mark.parametrize("kwargs", [
-    dict(obstacles=True),
-    dict(obstacles=True, noise="localization", randomization="strong"),
-    dict(task={"name": "nav_obstacles", "n_rays": 37, "observe_imu": True}),
-], ids=["obstacles", "noise_randomization", "37rays_imu"])
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        dict(obstacles=True),
+        dict(obstacles=True, noise="localization", randomization="strong"),
+        dict(task={"name": "nav_obstacles", "n_rays": 37, "observe_imu": True}),
+    ],
+    ids=["obstacles", "noise_randomization", "37rays_imu"],
+)
 def test_env_steps_match_the_python_reference(kwargs):
     """Every step's observation (from the believed pose) and obstacle reward term (from the true
     pose) against the reference code, and the collision outcome against the reference check."""
@@ -314,8 +341,9 @@ def test_env_steps_match_the_python_reference(kwargs):
         np.testing.assert_array_equal(obs, _reference_observation(env._believed, env.scene, prev, env.task, env._tilt))
         assert info["reward_terms"]["obstacle"] == _reference_obstacle_term(env._pose, env.scene)
         after_first = type(before)(before.left, env.backend.history[-2][1])
-        expected = _reference_double_step_collides(env.backend, env.scene.circles, before, after_first,
-                                                   env.backend.feet)
+        expected = _reference_double_step_collides(
+            env.backend, env.scene.circles, before, after_first, env.backend.feet
+        )
         assert info["collided"] == expected
         collisions += expected
         if terminated or truncated:
@@ -352,16 +380,20 @@ def test_box_kernel_matches_the_python_reference():
 
 
 def test_double_step_collisions_match_the_python_reference():
-    backend = Pymunk2DBackend(build_robot(load_preset("robot", "wolfgang")), build_walk(load_preset("walk", "pymunk")),
-                              collision_ends_episode=False)
+    backend = Pymunk2DBackend(
+        build_robot(load_preset("robot", "wolfgang")),
+        build_walk(load_preset("walk", "pymunk")),
+        collision_ends_episode=False,
+    )
     rng = np.random.default_rng(4)
     sampler = SceneSampler(obstacles=True, obstacle_offset_sigma=0.3, obstacle_radius_max=0.4)
     outcomes = []
     for episode in range(200):
         backend.reset(sampler.sample(rng), np.random.default_rng(episode))
         sigma = 0.02 * (episode % 2)  # (noise settings persist across resets)
-        backend.apply_randomization({"footstep_noise_x": sigma, "footstep_noise_y": sigma,
-                                     "footstep_noise_theta": 10 * sigma})
+        backend.apply_randomization(
+            {"footstep_noise_x": sigma, "footstep_noise_y": sigma, "footstep_noise_theta": 10 * sigma}
+        )
         for _ in range(25):
             before = backend.feet
             double_step = DoubleStep.from_action(rng.uniform(-1, 1, 6), backend.robot.step_limits)
@@ -378,10 +410,16 @@ def test_double_step_collisions_match_the_python_reference():
 
 
 # -- footstep placement --------------------------------------------------------------------------
-@pytest.mark.parametrize("geometry", [
-    FootstepGeometry(StepLimits()),
-    FootstepGeometry(StepLimits(0.2, 0.15, 1.2), foot_length=0.2, foot_width=0.12, foot_distance=0.26, min_foot_gap=0.0),
-], ids=["wolfgang_like", "other"])
+@pytest.mark.parametrize(
+    "geometry",
+    [
+        FootstepGeometry(StepLimits()),
+        FootstepGeometry(
+            StepLimits(0.2, 0.15, 1.2), foot_length=0.2, foot_width=0.12, foot_distance=0.26, min_foot_gap=0.0
+        ),
+    ],
+    ids=["wolfgang_like", "other"],
+)
 def test_placement_matches_the_python_reference(geometry):
     """``landing`` and ``execute`` (with and without a perturbation between the two footsteps)
     against the Python placement, over the limits and well beyond, inward steps included."""
@@ -417,8 +455,12 @@ def _reference_overlap_bands(x, theta, half_l, half_w):
     hi = np.full(x.shape, np.inf)
     separated = np.zeros(x.shape, dtype=bool)
     for nx, ny in ((np.ones_like(c), np.zeros_like(c)), (np.zeros_like(c), np.ones_like(c)), (c, s), (-s, c)):
-        reach = (half_l * np.abs(nx) + half_w * np.abs(ny)
-                 + half_l * np.abs(nx * c + ny * s) + half_w * np.abs(-nx * s + ny * c))
+        reach = (
+            half_l * np.abs(nx)
+            + half_w * np.abs(ny)
+            + half_l * np.abs(nx * c + ny * s)
+            + half_w * np.abs(-nx * s + ny * c)
+        )
         flat = np.abs(ny) < 1e-12
         separated |= flat & (np.abs(nx * x) > reach)
         with np.errstate(divide="ignore", invalid="ignore"):

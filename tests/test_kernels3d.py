@@ -22,8 +22,10 @@ def _quat_fused_roll_pitch(quat):
     """``footsim.backends.mujoco_backend.quat_fused_roll_pitch`` (copied: that module needs mujoco)."""
     w, x, y, z = quat.tolist()
     s_pitch, s_roll = 2.0 * (w * y - x * z), 2.0 * (y * z + w * x)
-    return (math.asin(-1.0 if s_roll < -1.0 else 1.0 if s_roll > 1.0 else s_roll),
-            math.asin(-1.0 if s_pitch < -1.0 else 1.0 if s_pitch > 1.0 else s_pitch))
+    return (
+        math.asin(-1.0 if s_roll < -1.0 else 1.0 if s_roll > 1.0 else s_roll),
+        math.asin(-1.0 if s_pitch < -1.0 else 1.0 if s_pitch > 1.0 else s_pitch),
+    )
 
 
 def _reference_tick(targets, trunk, quat, stabilizer, ff_state, k):
@@ -125,7 +127,6 @@ def test_control_tick_python_function_matches_the_compiled_one():
         np.testing.assert_array_equal(_bits(a), _bits(b))
 
 
-
 def test_typed_entry_is_the_compiled_kernel_without_dispatch():
     """``kernels2d.typed_entry``: the compiled code itself (not the dispatcher), returning what
     the dispatcher returns; and the plain function where there is nothing compiled."""
@@ -140,11 +141,15 @@ def test_typed_entry_is_the_compiled_kernel_without_dispatch():
     for k in range(8):
         quat = rng.normal(size=4)
         quat = tuple((quat / np.linalg.norm(quat)).tolist())
-        assert entry(state, k, quat) == bullet_control_tick(state, k, quat) == bullet_control_tick.py_func(state, k, quat)
+        assert (
+            entry(state, k, quat) == bullet_control_tick(state, k, quat) == bullet_control_tick.py_func(state, k, quat)
+        )
 
     def plain(x):
         return x + 1
+
     assert typed_entry(plain, 1) is plain
+
 
 def test_all_finite_matches_numpy():
     rng = np.random.default_rng(2)
@@ -165,8 +170,9 @@ def _walk(name, compiled, overrides=None, randomization=None, steps=4):
     from footsim.walk.footsteps import DoubleStep
 
     walk = fconf.build_walk(fconf.load_preset("walk", fconf.walk_preset_for(name)))
-    backend = fconf.build_backend(fconf.load_preset("backend", {"name": name, **(overrides or {})}),
-                                  fconf.build_robot("wolfgang"), walk)
+    backend = fconf.build_backend(
+        fconf.load_preset("backend", {"name": name, **(overrides or {})}), fconf.build_robot("wolfgang"), walk
+    )
     try:
         backend.compiled_ticks = compiled
         sim = backend.sim
@@ -174,8 +180,10 @@ def _walk(name, compiled, overrides=None, randomization=None, steps=4):
             backend.apply_randomization(randomization)
         backend.reset(Scene(goal=Pose2D(100.0, 0.0, 0.0)), np.random.default_rng(3))
         if compiled and "control_latency" not in (randomization or {}):
+
             def refuse(*_):  # the compiled path must not fall back to the verbs
                 raise AssertionError("compiled tick fell back to set_leg_targets / base_tilt")
+
             sim.set_leg_targets = sim.base_tilt = refuse
         actions = np.random.default_rng(7).uniform(-0.6, 0.6, size=(steps, 6))
         results = [backend.execute(DoubleStep.from_action(a, backend.robot.step_limits)) for a in actions]
@@ -227,8 +235,17 @@ def test_quick_status_equals_the_full_check(name):
         saved_q, saved_v = qpos.copy(), qvel.copy()
         rng = np.random.default_rng(3)
         quick_used = 0
-        cases = [("upright", None)] + [("tilted", i) for i in range(200)] + [
-            ("upside down", None), ("nan qvel", None), ("inf qpos", None), ("out of bounds", None), ("warning", None)]
+        cases = (
+            [("upright", None)]
+            + [("tilted", i) for i in range(200)]
+            + [
+                ("upside down", None),
+                ("nan qvel", None),
+                ("inf qpos", None),
+                ("out of bounds", None),
+                ("warning", None),
+            ]
+        )
         for kind, _ in cases:
             qpos[:], qvel[:] = saved_q, saved_v
             warnings[:] = 0

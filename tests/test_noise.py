@@ -133,16 +133,19 @@ def test_switching_bias_on_does_not_change_the_scenes():
     assert a.scene == b.scene
 
 
-@pytest.mark.parametrize("cfg,message", [
-    ({"delay_steps": -1}, "noise.delay_steps must be an integer >= 0"),
-    ({"delay_steps": 1.5}, "noise.delay_steps must be an integer >= 0"),
-    ({"delay_steps": True}, "noise.delay_steps must be an integer >= 0"),
-    ({"delay_steps": "2"}, "noise.delay_steps must be an integer >= 0"),
-    ({"bias_sigma_x": -0.1}, "noise.bias_sigma_x must be a number >= 0"),
-    ({"bias_sigma_theta": math.inf}, "noise.bias_sigma_theta"),
-    ({"bias_sigma_y": "a"}, "noise.bias_sigma_y"),
-    ({"bias": 0.1}, r"noise: unknown key\(s\) \['bias'\]"),
-])
+@pytest.mark.parametrize(
+    "cfg,message",
+    [
+        ({"delay_steps": -1}, "noise.delay_steps must be an integer >= 0"),
+        ({"delay_steps": 1.5}, "noise.delay_steps must be an integer >= 0"),
+        ({"delay_steps": True}, "noise.delay_steps must be an integer >= 0"),
+        ({"delay_steps": "2"}, "noise.delay_steps must be an integer >= 0"),
+        ({"bias_sigma_x": -0.1}, "noise.bias_sigma_x must be a number >= 0"),
+        ({"bias_sigma_theta": math.inf}, "noise.bias_sigma_theta"),
+        ({"bias_sigma_y": "a"}, "noise.bias_sigma_y"),
+        ({"bias": 0.1}, r"noise: unknown key\(s\) \['bias'\]"),
+    ],
+)
 def test_invalid_values_name_the_key(cfg, message):
     with pytest.raises(ValueError, match=message):
         FootstepEnv(noise=cfg)

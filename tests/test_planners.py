@@ -62,8 +62,15 @@ def test_costmap_inflation_and_distance_map():
 
 
 def test_carrot_controller_hand_computed():
-    p = VelocityParams(max_vel_x=0.3, min_vel_x=-0.1, max_vel_y=0.1, max_rotation_vel=0.6,
-                       translation_slow_down_factor=0.5, rotation_slow_down_factor=0.3, orient_to_goal_distance=1.0)
+    p = VelocityParams(
+        max_vel_x=0.3,
+        min_vel_x=-0.1,
+        max_vel_y=0.1,
+        max_rotation_vel=0.6,
+        translation_slow_down_factor=0.5,
+        rotation_slow_down_factor=0.3,
+        orient_to_goal_distance=1.0,
+    )
     # Far (d = 2 > 1): walk_vel = min(2 · 0.5, 0.3) = 0.3 towards the carrot at 45°:
     # (0.212, 0.212) scaled by 0.1 / 0.212 so |vy| = 0.1 → (0.1, 0.1); face the goal position (bearing 0).
     vx, vy, om = carrot_command(Pose2D(0, 0, 0), (1.0, 1.0), Pose2D(2.0, 0.0, 0.5), p)
@@ -95,7 +102,7 @@ def _rect_hits_circle_sampled(pose: Pose2D, half_l, half_w, o: Obstacle) -> bool
     for u in np.linspace(-half_l, half_l, 15):
         for v in np.linspace(-half_w, half_w, 11):
             x, y = pose.transform_point(u, v)
-            if (x - o.x) ** 2 + (y - o.y) ** 2 < o.r ** 2:
+            if (x - o.x) ** 2 + (y - o.y) ** 2 < o.r**2:
                 return True
     return False
 
@@ -111,7 +118,9 @@ def test_footstep_plan_within_limits_and_clear_of_obstacles(seed):
     state = feet
     for (side, step), (side2, pose) in zip(plan.steps, plan.poses):
         assert side == side2
-        assert abs(step.x) <= LIMITS.x + 1e-9 and abs(step.y) <= LIMITS.y + 1e-9 and abs(step.theta) <= LIMITS.theta + 1e-9
+        assert (
+            abs(step.x) <= LIMITS.x + 1e-9 and abs(step.y) <= LIMITS.y + 1e-9 and abs(step.theta) <= LIMITS.theta + 1e-9
+        )
         rel, done, interfered = GEOMETRY.landing(side, step)
         assert not interfered and done == step
         start = state.foot(side)
@@ -152,8 +161,10 @@ def test_baselines_reach_simple_goals(name):
 
 def _ring_scene() -> Scene:
     goal = Pose2D(1.5, 0.0, 0.0)
-    ring = tuple(Obstacle(goal.x + 0.5 * math.cos(a), goal.y + 0.5 * math.sin(a), 0.14)
-                 for a in np.linspace(0, 2 * math.pi, 14, endpoint=False))
+    ring = tuple(
+        Obstacle(goal.x + 0.5 * math.cos(a), goal.y + 0.5 * math.sin(a), 0.14)
+        for a in np.linspace(0, 2 * math.pi, 14, endpoint=False)
+    )
     return Scene(goal, ring)
 
 

@@ -20,12 +20,15 @@ def test_distributions_have_the_configured_statistics():
     assert n.mean() == pytest.approx(0.01, abs=2e-4) and n.std() == pytest.approx(0.005, rel=0.03)
 
 
-@pytest.mark.parametrize("cfg,msg", [
-    ({"dist": "uniform", "low": 2, "high": 1}, "low"),
-    ({"dist": "gamma", "low": 0, "high": 1}, "dist must be one of"),
-    ({"dist": "normal", "mean": 0}, "missing \\['std'\\]"),
-    ({"dist": "uniform", "low": 0, "high": 1, "when": "sometimes"}, "when must be"),
-])
+@pytest.mark.parametrize(
+    "cfg,msg",
+    [
+        ({"dist": "uniform", "low": 2, "high": 1}, "low"),
+        ({"dist": "gamma", "low": 0, "high": 1}, "dist must be one of"),
+        ({"dist": "normal", "mean": 0}, "missing \\['std'\\]"),
+        ({"dist": "uniform", "low": 0, "high": 1, "when": "sometimes"}, "when must be"),
+    ],
+)
 def test_bad_term_configs_name_the_key(cfg, msg):
     with pytest.raises(ValueError, match=msg):
         TermSpec.from_mapping("foot_friction", cfg, "randomization.terms_3d")
@@ -34,11 +37,16 @@ def test_bad_term_configs_name_the_key(cfg, msg):
 def test_unknown_term_and_unsupported_term_fail_naming_term_and_backend():
     with pytest.raises(ValueError, match="gravity_scale: unknown randomization term"):
         parse_terms({"terms_3d": {"gravity_scale": {"dist": "constant", "value": 1}}}, "terms_3d")
-    with pytest.raises(ValueError, match="backend 'pymunk' cannot apply randomization term\\(s\\) \\['foot_friction'\\]"):
+    with pytest.raises(
+        ValueError, match="backend 'pymunk' cannot apply randomization term\\(s\\) \\['foot_friction'\\]"
+    ):
         FootstepEnv(randomization={"terms_2d": {"foot_friction": {"dist": "constant", "value": 1.0}}})
     with pytest.raises(ValueError, match="cannot apply"):
-        Randomizer(parse_terms({"terms_2d": {"push_force": {"dist": "constant", "value": 1}}}, "terms_2d"),
-                   "pymunk", frozenset({"footstep_noise_x"}))
+        Randomizer(
+            parse_terms({"terms_2d": {"push_force": {"dist": "constant", "value": 1}}}, "terms_2d"),
+            "pymunk",
+            frozenset({"footstep_noise_x"}),
+        )
 
 
 def test_footstep_noise_moves_the_landings_with_the_drawn_sigma():
@@ -87,7 +95,12 @@ def test_per_step_terms_are_redrawn_every_step():
 def test_presets_load_and_none_reports_nothing():
     env = FootstepEnv(randomization="default")
     _, info = env.reset(seed=0)
-    assert set(info["randomization"]) == {"footstep_noise_x", "footstep_noise_y", "footstep_noise_theta", "walk_freq_scale"}
+    assert set(info["randomization"]) == {
+        "footstep_noise_x",
+        "footstep_noise_y",
+        "footstep_noise_theta",
+        "walk_freq_scale",
+    }
     _, info = FootstepEnv(randomization="none").reset(seed=0)
     assert "randomization" not in info
     FootstepEnv(randomization="strong").reset(seed=0)

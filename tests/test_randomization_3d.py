@@ -56,6 +56,7 @@ def _is_bullet(b):
 def _total_mass(b):
     if _is_bullet(b):
         import pybullet as p
+
         s = b.sim
         return sum(p.getDynamicsInfo(s.robot_id, link, physicsClientId=s.client)[0] for link in s._nominal_dynamics)
     model, _ = b.sim._mj()
@@ -65,6 +66,7 @@ def _total_mass(b):
 def _floor_normal(b):
     if _is_bullet(b):
         import pybullet as p
+
         _, orn = p.getBasePositionAndOrientation(b.sim.floor_id, physicsClientId=b.sim.client)
         return np.array(p.getMatrixFromQuaternion(orn)).reshape(3, 3)[:, 2]
     model, data = b.sim._mj()
@@ -75,6 +77,7 @@ def _foot_floor_friction(b):
     """The sliding friction coefficient of a foot–floor contact, as the engine combines it."""
     if _is_bullet(b):
         import pybullet as p
+
         s = b.sim
         floor = p.getDynamicsInfo(s.floor_id, -1, physicsClientId=s.client)[1]
         foot = p.getDynamicsInfo(s.robot_id, s.link_index["l_foot"], physicsClientId=s.client)[1]
@@ -82,8 +85,11 @@ def _foot_floor_friction(b):
     model, data = b.sim._mj()
     nominal = b.sim._mj_nominal()
     feet = set(nominal.foot_geoms.tolist())
-    mus = [data.contact.friction[i, 0] for i in range(data.ncon)
-           if nominal.floor_geom in data.contact.geom[i] and feet & set(data.contact.geom[i].tolist())]
+    mus = [
+        data.contact.friction[i, 0]
+        for i in range(data.ncon)
+        if nominal.floor_geom in data.contact.geom[i] and feet & set(data.contact.geom[i].tolist())
+    ]
     assert mus, "no foot-floor contact"
     return float(np.mean(mus))
 
@@ -101,12 +107,20 @@ def _feet_x(b):
     """Mean x of the two foot links (they slide; the base also leans)."""
     if _is_bullet(b):
         import pybullet as p
+
         s = b.sim
-        return float(np.mean([p.getLinkState(s.robot_id, s.link_index[f], physicsClientId=s.client)[0][0]
-                              for f in ("l_foot", "r_foot")]))
+        return float(
+            np.mean(
+                [
+                    p.getLinkState(s.robot_id, s.link_index[f], physicsClientId=s.client)[0][0]
+                    for f in ("l_foot", "r_foot")
+                ]
+            )
+        )
     _, data = b.sim._mj()
     model, _ = b.sim._mj()
     import mujoco
+
     ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, b.robot.foot_link(s)) for s in ("left", "right")]
     return float(np.mean(data.xpos[ids, 0]))
 
@@ -151,6 +165,7 @@ def test_actuator_kp_and_torque_limit_and_damping_change_the_servos(env):
         assert np.allclose(s.leg_forces, forces * 0.7)
         # Measured: a big target error saturates the motor at the scaled max force.
         import pybullet as p
+
         target = np.array([p.getJointState(s.robot_id, i, physicsClientId=s.client)[0] for i in s.leg_indices])
         target[KNEE] += 1.0
         s.set_leg_targets(target)
@@ -239,7 +254,7 @@ def test_control_latency_delays_the_joint_targets_by_the_rounded_ticks(env):
         b.stabilizer = stabilizer
     n = min(len(plain), len(late))
     assert n > 20
-    assert np.allclose(late[2:n], plain[:n - 2])
+    assert np.allclose(late[2:n], plain[: n - 2])
     assert np.allclose(late[0], late[1]) and not np.allclose(late[2:n], plain[2:n])
 
 
@@ -324,7 +339,9 @@ def test_presets_run_reproducibly_and_do_not_compound(name):
 def test_unsupported_term_fails_at_start_naming_term_and_backend(name):
     if not _available(name):
         pytest.skip(f"{name} is not installed")
-    with pytest.raises(ValueError, match=f"backend '{name}' cannot apply randomization term\\(s\\) \\['footstep_noise_x'\\]"):
+    with pytest.raises(
+        ValueError, match=f"backend '{name}' cannot apply randomization term\\(s\\) \\['footstep_noise_x'\\]"
+    ):
         FootstepEnv(backend=name, randomization={"terms_3d": {"footstep_noise_x": {"dist": "constant", "value": 0.01}}})
 
 

@@ -32,9 +32,11 @@ from footsim.walk.ik import LegGeometry
 mujoco = pytest.importorskip("mujoco")
 
 LEG = ("HipYaw", "HipRoll", "HipPitch", "Knee", "AnklePitch", "AnkleRoll")
-EXPECTED_JOINTS = {s + j for s in "LR" for j in LEG} | {
-    s + j for s in "LR" for j in ("ShoulderPitch", "ShoulderRoll", "Elbow")
-} | {"HeadPan", "HeadTilt"}
+EXPECTED_JOINTS = (
+    {s + j for s in "LR" for j in LEG}
+    | {s + j for s in "LR" for j in ("ShoulderPitch", "ShoulderRoll", "Elbow")}
+    | {"HeadPan", "HeadTilt"}
+)
 
 
 @pytest.fixture(scope="module")
@@ -102,7 +104,7 @@ def mujoco_sole(mj, spec, q: dict[str, float], side: str) -> tuple[np.ndarray, n
     model = mj.model
     data = mujoco.MjData(model)
     adr = model.jnt_qposadr[model.joint(FREE_JOINT).id]
-    data.qpos[adr:adr + 7] = [0, 0, 0, 1, 0, 0, 0]
+    data.qpos[adr : adr + 7] = [0, 0, 0, 1, 0, 0, 0]
     for name, angle in q.items():
         data.qpos[model.jnt_qposadr[model.joint(name).id]] = angle
     mujoco.mj_kinematics(model, data)
@@ -128,8 +130,9 @@ def bullet_sole(bullet, spec, q: dict[str, float], side: str) -> tuple[np.ndarra
     pybullet.resetBasePositionAndOrientation(body, com_local.tolist(), [0, 0, 0, 1], physicsClientId=client)
     for name in spec.joint_names:  # every joint: the body keeps the previous call's angles
         pybullet.resetJointState(body, index[name], q.get(name, 0.0), physicsClientId=client)
-    state = pybullet.getLinkState(body, index["link:" + sole_frame_name(side)], computeForwardKinematics=True,
-                                  physicsClientId=client)
+    state = pybullet.getLinkState(
+        body, index["link:" + sole_frame_name(side)], computeForwardKinematics=True, physicsClientId=client
+    )
     rot = np.array(pybullet.getMatrixFromQuaternion(state[5])).reshape(3, 3)
     return np.array(state[4]), rot
 
@@ -153,8 +156,9 @@ def test_wolfgang_has_the_real_robots_20_joints_and_mass(spec):
     assert spec.dof == 20
     assert set(spec.joint_names) == EXPECTED_JOINTS
     assert spec.total_mass == pytest.approx(6.117, abs=0.01)
-    per_leg = sum(spec.link(f"l_{n}").inertial.mass for n in ("hip_1", "hip_2", "upper_leg", "lower_leg",
-                                                                "ankle", "foot"))
+    per_leg = sum(
+        spec.link(f"l_{n}").inertial.mass for n in ("hip_1", "hip_2", "upper_leg", "lower_leg", "ankle", "foot")
+    )
     assert per_leg == pytest.approx(1.307, abs=0.01)  # FACTS: each leg 1.307 kg (+ cleats)
     assert spec.link("torso").inertial.mass == pytest.approx(2.084)
     assert spec.link("torso").inertial.com[2] == pytest.approx(0.110)
@@ -165,7 +169,8 @@ def test_wolfgang_has_the_real_robots_20_joints_and_mass(spec):
 def test_leg_geometry_is_the_public_chain(spec):
     legs = spec.leg_geometry
     assert (legs.hip_offset_y, legs.hip_offset_z, legs.thigh, legs.shin, legs.ankle_to_sole) == pytest.approx(
-        (0.055, 0.0414, 0.169, 0.170, 0.0529))
+        (0.055, 0.0414, 0.169, 0.170, 0.0529)
+    )
     assert spec.leg_joint_names("left") == tuple("L" + j for j in LEG)
     assert spec.leg_joint_names("R") == tuple("R" + j for j in LEG)
     assert spec.leg_limits("left").shape == (6, 2)
@@ -354,12 +359,17 @@ def test_mujoco_sole_matches_hand_kinematics(spec, mj):
     cases = [
         ({}, "left", [0.0, 0.055, -total]),
         ({}, "right", [0.0, -0.055, -total]),
-        ({"LHipPitch": -math.pi / 2}, "left", [legs.thigh + legs.shin + legs.ankle_to_sole, 0.055,
-                                                -legs.hip_offset_z]),
-        ({"RHipRoll": -0.5}, "right", [0.0, -0.055 - (total - legs.hip_offset_z) * math.sin(0.5),
-                                       -legs.hip_offset_z - (total - legs.hip_offset_z) * math.cos(0.5)]),
-        ({"LKnee": math.pi / 2}, "left", [-(legs.shin + legs.ankle_to_sole), 0.055,
-                                          -legs.hip_offset_z - legs.thigh]),
+        ({"LHipPitch": -math.pi / 2}, "left", [legs.thigh + legs.shin + legs.ankle_to_sole, 0.055, -legs.hip_offset_z]),
+        (
+            {"RHipRoll": -0.5},
+            "right",
+            [
+                0.0,
+                -0.055 - (total - legs.hip_offset_z) * math.sin(0.5),
+                -legs.hip_offset_z - (total - legs.hip_offset_z) * math.cos(0.5),
+            ],
+        ),
+        ({"LKnee": math.pi / 2}, "left", [-(legs.shin + legs.ankle_to_sole), 0.055, -legs.hip_offset_z - legs.thigh]),
     ]
     for q, side, expected in cases:
         pos, _ = mujoco_sole(mj, spec, q, side)
@@ -401,15 +411,15 @@ def test_mjcf_robot_stands_in_walk_ready_pose(mj):
     data = mujoco.MjData(model)
     mujoco.mj_resetDataKeyframe(model, data, model.key(WALK_READY_KEY).id)
     adr = model.jnt_qposadr[model.joint(FREE_JOINT).id]
-    start = data.qpos[adr:adr + 3].copy()
+    start = data.qpos[adr : adr + 3].copy()
     for _ in range(1500):
         mujoco.mj_step(model, data)
     up = np.zeros(9)
-    mujoco.mju_quat2Mat(up, data.qpos[adr + 3:adr + 7])
+    mujoco.mju_quat2Mat(up, data.qpos[adr + 3 : adr + 7])
     tilt = math.degrees(math.acos(min(1.0, up[8])))
     assert tilt < 5.0
     assert abs(data.qpos[adr + 2] - start[2]) < 0.01
-    assert np.linalg.norm(data.qpos[adr:adr + 2] - start[:2]) < 0.02
+    assert np.linalg.norm(data.qpos[adr : adr + 2] - start[:2]) < 0.02
     assert np.abs(data.qvel).max() < 0.01  # at rest
 
 

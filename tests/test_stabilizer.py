@@ -59,7 +59,9 @@ def test_mujoco_hip_roll_feedback_reduces_roll_under_a_side_push():
 
     def max_roll(gain: float) -> float:
         cfg = fconf.load_preset("backend", {"name": "mujoco", "stabilizer": {"hip_roll": gain}})
-        backend = fconf.build_backend(cfg, fconf.build_robot("wolfgang"), fconf.build_walk(fconf.load_preset("walk", "mujoco")))
+        backend = fconf.build_backend(
+            cfg, fconf.build_robot("wolfgang"), fconf.build_walk(fconf.load_preset("walk", "mujoco"))
+        )
         try:
             backend.reset(Scene(goal=Pose2D(100.0, 0.0, 0.0)), np.random.default_rng(0))
             backend.sim.apply_base_force(np.array([0.0, 6.0, 0.0]))

@@ -14,8 +14,17 @@ from hydra import compose, initialize_config_dir
 from footsim import sweeps
 from footsim.config import conf_dir
 
-TINY = ["train.total_timesteps=256", "train.n_envs=2", "agent.n_steps=64", "agent.batch_size=64", "agent.n_epochs=1",
-        "eval.n_scenes=3", "train.progress_bar=false", "train.tensorboard=false", "eval.plot=false"]
+TINY = [
+    "train.total_timesteps=256",
+    "train.n_envs=2",
+    "agent.n_steps=64",
+    "agent.batch_size=64",
+    "agent.n_epochs=1",
+    "eval.n_scenes=3",
+    "train.progress_bar=false",
+    "train.tensorboard=false",
+    "eval.plot=false",
+]
 
 
 def run(*args, cwd=None, timeout=300):
@@ -37,13 +46,23 @@ def _has(module: str) -> bool:
 
 # -- local multirun -------------------------------------------------------------------------------
 @pytest.mark.slow
-@pytest.mark.skipif(not _has("hydra_plugins.hydra_joblib_launcher"), reason="hydra-joblib-launcher not installed "
-                    "(pip install 'footsim[joblib]')")
+@pytest.mark.skipif(
+    not _has("hydra_plugins.hydra_joblib_launcher"),
+    reason="hydra-joblib-launcher not installed (pip install 'footsim[joblib]')",
+)
 def test_local_multirun_keeps_results_of_good_jobs_and_reports_the_crashed_ones(tmp_path):
     sweep = tmp_path / "sweep"
     # 4 jobs, 2 in parallel: seeds 0 and 1 train; agent.n_epochs=0 is invalid and crashes its 2 jobs
-    proc = run("footsim-train", "-m", "+launcher=local", "hydra.launcher.n_jobs=2", *TINY, "seed=0,1",
-               "agent.n_epochs=1,0", f"hydra.sweep.dir={sweep}")
+    proc = run(
+        "footsim-train",
+        "-m",
+        "+launcher=local",
+        "hydra.launcher.n_jobs=2",
+        *TINY,
+        "seed=0,1",
+        "agent.n_epochs=1,0",
+        f"hydra.sweep.dir={sweep}",
+    )
     assert proc.returncode != 0, "a crashed job must make the sweep exit non-zero"
     assert "agent.n_epochs must be a positive integer" in proc.stderr, _fail_msg(proc)
     assert "Joblib.Parallel" in proc.stdout + proc.stderr  # the local preset selects the joblib launcher
@@ -62,7 +81,11 @@ def test_local_multirun_keeps_results_of_good_jobs_and_reports_the_crashed_ones(
     assert proc.returncode == 0, _fail_msg(proc)
     rows = list(csv.DictReader((sweep / "sweep_summary.csv").open()))
     assert [(r["job"], r["status"], r["seed"], r["agent.n_epochs"]) for r in rows] == [
-        ("0", "ok", "0", "1"), ("1", "ok", "1", "1"), ("2", "failed", "0", "0"), ("3", "failed", "1", "0")]
+        ("0", "ok", "0", "1"),
+        ("1", "ok", "1", "1"),
+        ("2", "failed", "0", "0"),
+        ("3", "failed", "1", "0"),
+    ]
     for r in rows[:2]:
         assert r["episodes"] == "3" and 0.0 <= float(r["success"]) <= 1.0
     assert "agent.n_epochs must be a positive integer" in rows[2]["error"]
@@ -87,8 +110,12 @@ def _fake_job(root: Path, name: str, overrides: list[str], summary=None, failed=
 
 
 def test_summary_table_of_a_synthetic_sweep(tmp_path, capsys):
-    _fake_job(tmp_path, "10", ["seed=2", "+experiment=thesis_2d"], {"episodes": 5, "success": 0.4, "label": "p",
-                                                                     "success_time_mean": float("nan")})
+    _fake_job(
+        tmp_path,
+        "10",
+        ["seed=2", "+experiment=thesis_2d"],
+        {"episodes": 5, "success": 0.4, "label": "p", "success_time_mean": float("nan")},
+    )
     _fake_job(tmp_path, "2", ["seed=1", "+experiment=thesis_2d"], {"episodes": 5, "success": 0.8, "extra": 1})
     _fake_job(tmp_path, "3", ["seed=3", "+experiment=thesis_2d"], failed="ValueError: bad | value")
     _fake_job(tmp_path, "4", ["seed=4", "+experiment=thesis_2d"], model=False)
@@ -108,12 +135,15 @@ def test_summary_table_of_a_synthetic_sweep(tmp_path, capsys):
     assert "4 jobs, 2 ok, 2 failed or without evaluation" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("argv,message", [
-    ([], "missing dir="),
-    (["dir=/nonexistent/sweep"], "is not a directory"),
-    (["directory=x"], "expected one of"),
-    (["dir=a", "dir=b"], "given twice"),
-])
+@pytest.mark.parametrize(
+    "argv,message",
+    [
+        ([], "missing dir="),
+        (["dir=/nonexistent/sweep"], "is not a directory"),
+        (["directory=x"], "expected one of"),
+        (["dir=a", "dir=b"], "given twice"),
+    ],
+)
 def test_summary_cli_rejects_bad_arguments(argv, message, capsys):
     assert sweeps.main(argv) == 2
     assert message in capsys.readouterr().err
@@ -151,16 +181,30 @@ def test_ray_preset_composes():
 
 def test_experiment_presets_compose():
     cfg = _compose("+experiment=thesis_2d")
-    assert (cfg.backend.name, cfg.task.name, cfg.train.total_timesteps, cfg.eval.n_scenes) == ("pymunk", "nav", 1000000, 500)
+    assert (cfg.backend.name, cfg.task.name, cfg.train.total_timesteps, cfg.eval.n_scenes) == (
+        "pymunk",
+        "nav",
+        1000000,
+        500,
+    )
     cfg = _compose("+experiment=thesis_2d_obstacles", "noise=localization")
     assert (cfg.task.name, cfg.noise.name) == ("nav_obstacles", "localization")
     cfg = _compose("+experiment=thesis_3d")
-    assert (cfg.backend.name, cfg.hydra.runtime.choices.walk, cfg.task.name, cfg.noise.name) == ("mujoco", "mujoco", "nav", "none")
+    assert (cfg.backend.name, cfg.hydra.runtime.choices.walk, cfg.task.name, cfg.noise.name) == (
+        "mujoco",
+        "mujoco",
+        "nav",
+        "none",
+    )
     cfg = _compose("+experiment=thesis_3d", "backend=pybullet")  # the walk follows the backend
     assert (cfg.backend.name, cfg.hydra.runtime.choices.walk, cfg.walk.freq) == ("pybullet", "pybullet", 0.819559)
     cfg = _compose("+experiment=dr_mujoco")
     assert (cfg.backend.name, cfg.hydra.runtime.choices.walk, cfg.noise.name, cfg.randomization.name) == (
-        "mujoco", "mujoco", "localization", "default")
+        "mujoco",
+        "mujoco",
+        "localization",
+        "default",
+    )
 
 
 # -- Optuna sweeper -----------------------------------------------------------------------------------
@@ -185,13 +229,29 @@ def test_search_space_syntax():
     from hydra_plugins.footsim_optuna_sweeper._impl import format_value, split_arguments
 
     parser = OverridesParser.create()
-    space, fixed = split_arguments(parser.parse_overrides([
-        "a=tag(log, interval(1e-5, 1e-3))", "b=interval(0, 10)", "c=range(3, 11)", "d=choice(relu, tanh)",
-        "e=1,2", "f=range(0.1, 0.5, 0.1)", "g=tag(int, interval(1.0, 4.0))", "h=5", "b=7"]))
+    space, fixed = split_arguments(
+        parser.parse_overrides(
+            [
+                "a=tag(log, interval(1e-5, 1e-3))",
+                "b=interval(0, 10)",
+                "c=range(3, 11)",
+                "d=choice(relu, tanh)",
+                "e=1,2",
+                "f=range(0.1, 0.5, 0.1)",
+                "g=tag(int, interval(1.0, 4.0))",
+                "h=5",
+                "b=7",
+            ]
+        )
+    )
     assert space["a"] == FloatDistribution(1e-5, 1e-3, log=True)
     assert space["c"] == IntDistribution(3, 10)
     assert space["d"] == CategoricalDistribution(["relu", "tanh"]) and space["e"] == CategoricalDistribution([1, 2])
-    assert space["f"].low == pytest.approx(0.1) and space["f"].high == pytest.approx(0.4) and space["f"].step == pytest.approx(0.1)
+    assert (
+        space["f"].low == pytest.approx(0.1)
+        and space["f"].high == pytest.approx(0.4)
+        and space["f"].step == pytest.approx(0.1)
+    )
     assert space["g"] == IntDistribution(1, 4)
     assert fixed == {"h": "5", "b": "7"} and "b" not in space  # a later fixed value replaces the search
     assert format_value(1e-05) == "1e-05" and format_value(True) == "true" and format_value(None) == "null"
@@ -202,11 +262,14 @@ def test_search_space_syntax():
 
 
 @needs_optuna
-@pytest.mark.parametrize("key,value,message", [
-    ("direction", "up", "hydra.sweeper.direction"),
-    ("n_trials", 0, "hydra.sweeper.n_trials must be a positive integer"),
-    ("n_jobs", -1, "hydra.sweeper.n_jobs must be a positive integer"),
-])
+@pytest.mark.parametrize(
+    "key,value,message",
+    [
+        ("direction", "up", "hydra.sweeper.direction"),
+        ("n_trials", 0, "hydra.sweeper.n_trials must be a positive integer"),
+        ("n_jobs", -1, "hydra.sweeper.n_jobs must be a positive integer"),
+    ],
+)
 def test_sweeper_validates_its_config(key, value, message):
     from hydra_plugins.footsim_optuna_sweeper._impl import OptunaSweeperImpl
 
@@ -232,7 +295,8 @@ TOY_APP = textwrap.dedent("""
 
 def _toy(tmp_path):
     (tmp_path / "conf").mkdir()
-    (tmp_path / "conf" / "config.yaml").write_text(textwrap.dedent("""
+    (tmp_path / "conf" / "config.yaml").write_text(
+        textwrap.dedent("""
         defaults:
           - override hydra/sweeper: optuna
           - _self_
@@ -245,7 +309,8 @@ def _toy(tmp_path):
             n_jobs: 3
             sampler: {_target_: optuna.samplers.TPESampler, seed: 1, n_startup_trials: 5}
             params: {x: "interval(-5.0, 5.0)"}
-    """))
+    """)
+    )
     (tmp_path / "app.py").write_text(TOY_APP)
 
 
@@ -270,7 +335,7 @@ def test_optuna_sweeper_on_a_toy_task_failures_and_resume(tmp_path):
         elif t.params["x"] < -4.5:
             assert t.state.name == "FAIL" and "returned None" in t.user_attrs["error"]
         else:
-            assert t.state.name == "COMPLETE" and t.value == pytest.approx(-(t.params["x"] - 1) ** 2)
+            assert t.state.name == "COMPLETE" and t.value == pytest.approx(-((t.params["x"] - 1) ** 2))
     results = (tmp_path / "sweep" / "optimization_results.yaml").read_text()
     assert "best_params" in results and "n_trials: 8" in results
 

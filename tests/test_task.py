@@ -7,7 +7,7 @@ import pytest
 
 from footsim.geometry import Pose2D, wrap_angles
 from footsim.tasks import nav
-from footsim.tasks.nav import NavTaskConfig, WEIGHTS_NO_OBSTACLES, WEIGHTS_OBSTACLES
+from footsim.tasks.nav import WEIGHTS_NO_OBSTACLES, WEIGHTS_OBSTACLES, NavTaskConfig
 from footsim.tasks.noise import NoiseModel
 from footsim.tasks.scenes import Obstacle, Scene, SceneSampler, load_scenes, sample_scenes, save_scenes
 
@@ -17,10 +17,10 @@ def test_reward_terms_match_hand_computation():
     a = np.array([0.5, 0, 0, 0, 0, 0.0])
     prev = np.array([0.0, 0, 0, 0, 0, 1.0])
     terms = nav.reward_terms(Pose2D(0, 0, 0), scene, a, prev)
-    assert terms["distance"] == pytest.approx(math.exp(-0.5))                  # d = 1
+    assert terms["distance"] == pytest.approx(math.exp(-0.5))  # d = 1
     assert terms["angle"] == pytest.approx(math.exp(-5) * math.exp(-math.pi / 2))  # α = 90°
-    assert terms["orientation"] == pytest.approx(1.0)                           # β = 0
-    assert terms["obstacle"] == 1.0                                             # no obstacles
+    assert terms["orientation"] == pytest.approx(1.0)  # β = 0
+    assert terms["obstacle"] == 1.0  # no obstacles
     assert terms["continuity"] == pytest.approx((math.exp(-1.5) + math.exp(-3) + 4) / 6)
     total = nav.weighted_reward(terms, WEIGHTS_NO_OBSTACLES)
     assert total == pytest.approx(0.3 * 0.6065307 + 0.3 * 0.0014007 + 0.2 * 1 + 0.2 * 0.7121529, rel=1e-5)
@@ -56,12 +56,12 @@ def test_observation_layout_and_range():
     obs = nav.observation(Pose2D(0, 0, 0), scene, prev, cfg)
     assert obs.shape == (53,) and obs.dtype == np.float32
     assert obs[0] == pytest.approx(math.tanh(math.sqrt(2)))
-    assert obs[1:3] == pytest.approx([0.0, 1.0])                     # α = 0
+    assert obs[1:3] == pytest.approx([0.0, 1.0])  # α = 0
     assert obs[3:5] == pytest.approx([math.sin(math.pi / 4), math.cos(math.pi / 4)], abs=1e-6)  # β = 45°
     assert np.all(obs[5:11] == 0.5) and np.all(obs[11:17] == -0.25)
     rays = obs[17:]
-    assert rays[27] == pytest.approx(math.tanh(0.8), abs=1e-6)       # ray 27 points at -90°: hits at 0.8 m
-    assert rays[0] == pytest.approx(math.tanh(5.0), abs=1e-6)        # nothing ahead: max range
+    assert rays[27] == pytest.approx(math.tanh(0.8), abs=1e-6)  # ray 27 points at -90°: hits at 0.8 m
+    assert rays[0] == pytest.approx(math.tanh(5.0), abs=1e-6)  # nothing ahead: max range
     assert np.all((obs >= -1) & (obs <= 1))
     assert nav.observation(Pose2D(), scene, prev, NavTaskConfig()).shape == (17,)
 
@@ -146,6 +146,7 @@ def test_scene_file_gets_the_umask_permissions_and_a_failed_write_keeps_the_old_
         with open(tmp, "w") as fh:
             fh.write("half a fi")
         raise OSError("disk full")
+
     with pytest.raises(OSError, match="disk full"):
         atomic_save(crash, path)
     assert path.read_bytes() == before
@@ -161,12 +162,15 @@ def test_scene_from_plain_tuples_equals_the_typed_scene_and_bad_ones_are_named()
         Scene(goal=(1, 2))
 
 
-@pytest.mark.parametrize("bad,msg", [
-    ({"goal": [0, 0]}, "scene 1: 'goal'"),
-    ({"goal": [0, 0, "x"]}, "scene 1: 'goal'"),
-    ({"goal": [0, 0, 0], "obstacles": [[0, 0, -1]]}, "scene 1: obstacle 0: radius"),
-    ({"obstacles": []}, "scene 1: missing key 'goal'"),
-])
+@pytest.mark.parametrize(
+    "bad,msg",
+    [
+        ({"goal": [0, 0]}, "scene 1: 'goal'"),
+        ({"goal": [0, 0, "x"]}, "scene 1: 'goal'"),
+        ({"goal": [0, 0, 0], "obstacles": [[0, 0, -1]]}, "scene 1: obstacle 0: radius"),
+        ({"obstacles": []}, "scene 1: missing key 'goal'"),
+    ],
+)
 def test_malformed_scene_file_names_the_scene(tmp_path, bad, msg):
     path = tmp_path / "bad.json"
     path.write_text(json.dumps({"scenes": [{"goal": [1, 1, 0], "obstacles": [], "ball": None}, bad]}))

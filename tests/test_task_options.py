@@ -48,8 +48,11 @@ def test_bad_option_values_are_named():
 
 
 def test_2d_env_with_the_options_reports_zero_tilt():
-    task = dict(fconf.load_preset("task", "nav"), observe_imu=True,
-                reward_weights={"distance": 0.3, "angle": 0.3, "orientation": 0.2, "continuity": 0.1, "stability": 0.1})
+    task = dict(
+        fconf.load_preset("task", "nav"),
+        observe_imu=True,
+        reward_weights={"distance": 0.3, "angle": 0.3, "orientation": 0.2, "continuity": 0.1, "stability": 0.1},
+    )
     env = FootstepEnv(task=task)
     obs, _ = env.reset(seed=0)
     assert obs.shape == (20,) and env.observation_space.shape == (20,)

@@ -8,8 +8,17 @@ pytest.importorskip("mujoco")
 
 from footsim.rl import transfer_matrix  # noqa: E402
 
-TINY = ["train.total_timesteps=64", "train.n_envs=2", "agent.n_steps=32", "agent.batch_size=32", "agent.n_epochs=1",
-        "train.progress_bar=false", "train.tensorboard=false", "train.vec_env=dummy", "task.max_steps=4"]
+TINY = [
+    "train.total_timesteps=64",
+    "train.n_envs=2",
+    "agent.n_steps=32",
+    "agent.batch_size=32",
+    "agent.n_epochs=1",
+    "train.progress_bar=false",
+    "train.tensorboard=false",
+    "train.vec_env=dummy",
+    "task.max_steps=4",
+]
 
 
 def _rows(path):
@@ -23,7 +32,11 @@ def test_transfer_matrix_trains_evaluates_and_reuses_runs(tmp_path):
     transfer_matrix.main([f"out={out}", "backends=pymunk,mujoco", "n_scenes=2", *TINY])
     rows = _rows(out / "matrix.csv")
     assert {(r["train_backend"], r["eval_backend"]) for r in rows} == {
-        ("pymunk", "pymunk"), ("pymunk", "mujoco"), ("mujoco", "pymunk"), ("mujoco", "mujoco")}
+        ("pymunk", "pymunk"),
+        ("pymunk", "mujoco"),
+        ("mujoco", "pymunk"),
+        ("mujoco", "mujoco"),
+    }
     assert len(rows) == 4 and all(r["randomization"] == "none" and r["episodes"] == "2" for r in rows)
     for r in rows:
         assert sum(float(r[k]) for k in ("success", "timeout", "fall", "collision", "sim_error")) == pytest.approx(1.0)
@@ -33,13 +46,23 @@ def test_transfer_matrix_trains_evaluates_and_reuses_runs(tmp_path):
 
     # reuse the trained runs: no training, the same scene file, both randomization presets, one eval backend
     again = tmp_path / "again"
-    transfer_matrix.main([f"out={again}", f"runs={out / 'train'}", f"scenes={out / 'scenes.json'}",
-                          "eval_backends=pymunk", "randomization=none,default"])
+    transfer_matrix.main(
+        [
+            f"out={again}",
+            f"runs={out / 'train'}",
+            f"scenes={out / 'scenes.json'}",
+            "eval_backends=pymunk",
+            "randomization=none,default",
+        ]
+    )
     rows2 = _rows(again / "matrix.csv")
     assert not (again / "train").exists()
     assert {(r["train_backend"], r["eval_backend"], r["randomization"]) for r in rows2} == {
-        ("pymunk", "pymunk", "none"), ("mujoco", "pymunk", "none"),
-        ("pymunk", "pymunk", "default"), ("mujoco", "pymunk", "default")}
+        ("pymunk", "pymunk", "none"),
+        ("mujoco", "pymunk", "none"),
+        ("pymunk", "pymunk", "default"),
+        ("mujoco", "pymunk", "default"),
+    }
     same = {r["train_backend"]: r for r in rows if r["eval_backend"] == "pymunk"}
     for r in rows2:  # deterministic policy, same scenes, no randomization: the same numbers
         if r["randomization"] == "none":
@@ -48,8 +71,9 @@ def test_transfer_matrix_trains_evaluates_and_reuses_runs(tmp_path):
 
 
 def test_arguments(tmp_path):
-    cfg, overrides = transfer_matrix.parse_args(["backends=[pymunk,pybullet]", "randomization=none,default",
-                                                 "n_scenes=7", "seed=3", "train.total_timesteps=10"])
+    cfg, overrides = transfer_matrix.parse_args(
+        ["backends=[pymunk,pybullet]", "randomization=none,default", "n_scenes=7", "seed=3", "train.total_timesteps=10"]
+    )
     assert overrides == ["seed=3", "train.total_timesteps=10"]  # seed is footsim-train's
     assert cfg["backends"] == ["pymunk", "pybullet"] and cfg["randomization"] == ["none", "default"]
     assert cfg["n_scenes"] == 7
@@ -59,4 +83,6 @@ def test_arguments(tmp_path):
     with pytest.raises(SystemExit, match="runs= reuses"):
         transfer_matrix.parse_args(["runs=/tmp", "train.total_timesteps=5"])
     with pytest.raises(SystemExit, match="no trained run"):
-        transfer_matrix.transfer_matrix({**transfer_matrix.parse_args([])[0], "runs": str(tmp_path), "out": str(tmp_path / "o")}, [])
+        transfer_matrix.transfer_matrix(
+            {**transfer_matrix.parse_args([])[0], "runs": str(tmp_path), "out": str(tmp_path / "o")}, []
+        )

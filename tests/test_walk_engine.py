@@ -17,7 +17,7 @@ from footsim.walk import (
     WalkParams,
     WalkState,
 )
-from footsim.walk.ik import leg_fk, rotation_from_rpy, rpy_from_rotation
+from footsim.walk.ik import leg_fk, rpy_from_rotation
 
 LIMITS = StepLimits(0.156, 0.103, 0.764)
 LEG = LegGeometry()
@@ -119,7 +119,10 @@ def test_put_down_pose_by_fk_equals_landing_for_every_footstep():
     engine = make_engine()
     geometry = engine.geometry
     extreme = DoubleStep(Footstep(0.3, -0.2, 1.0), Footstep(-0.3, 0.2, -1.0))
-    orders = random_double_steps(20, 0.6, seed=11) + [extreme, DoubleStep(Footstep(0.15, 0.0, 0.7), Footstep(0.15, 0.0, 0.7))]
+    orders = random_double_steps(20, 0.6, seed=11) + [
+        extreme,
+        DoubleStep(Footstep(0.15, 0.0, 0.7), Footstep(0.15, 0.0, 0.7)),
+    ]
     feet = engine.feet
     for ds in orders:
         traj = engine.double_step(ds)
@@ -278,7 +281,9 @@ def test_velocity_orders_give_v_over_two_freq_per_step():
     assert ds.second == Footstep(0.0, pytest.approx(0.05 / (2 * f)), pytest.approx(0.3 / (2 * f)))
     ds = engine.footsteps_from_velocity(-0.1, -0.05, -0.3)
     assert ds.second == Footstep(pytest.approx(-0.1 / (2 * f)), 0.0, 0.0)
-    assert ds.first == Footstep(pytest.approx(-0.1 / (2 * f)), pytest.approx(-0.05 / (2 * f)), pytest.approx(-0.3 / (2 * f)))
+    assert ds.first == Footstep(
+        pytest.approx(-0.1 / (2 * f)), pytest.approx(-0.05 / (2 * f)), pytest.approx(-0.3 / (2 * f))
+    )
 
 
 def test_velocity_orders_respect_limits_and_multipliers():
@@ -325,7 +330,14 @@ def test_non_finite_orders_raise_and_leave_the_engine_untouched(bad):
 
 @pytest.mark.parametrize(
     "field,value",
-    [("freq", 0.0), ("freq", -1.0), ("double_support_ratio", 1.0), ("double_support_ratio", -0.1), ("foot_rise", -0.01), ("trunk_height", math.nan)],
+    [
+        ("freq", 0.0),
+        ("freq", -1.0),
+        ("double_support_ratio", 1.0),
+        ("double_support_ratio", -0.1),
+        ("foot_rise", -0.01),
+        ("trunk_height", math.nan),
+    ],
 )
 def test_invalid_walk_params_name_the_field(field, value):
     with pytest.raises(ValueError, match=field):
@@ -379,8 +391,9 @@ def test_swing_path_goes_around_the_support_foot():
     over the support foot.  The engine detours outward so no tick of the swing overlaps."""
     engine = make_engine()
     geometry = engine.geometry
-    touching = FootstepGeometry(geometry.limits, geometry.foot_length, geometry.foot_width, geometry.foot_distance,
-                                min_foot_gap=0.0)
+    touching = FootstepGeometry(
+        geometry.limits, geometry.foot_length, geometry.foot_width, geometry.foot_distance, min_foot_gap=0.0
+    )
     overlaps = 0
     for action in ([-0.93, 0.79, 0.32, 0.8, -0.77, 0.97], [0.07, 0.32, -0.24, 0.47, 0.32, 0.68]):
         trajectory = engine.double_step(DoubleStep.from_action(action, LIMITS))

@@ -12,8 +12,9 @@ from omegaconf import OmegaConf
 from footsim.config import conf_dir
 
 needs_pybullet = pytest.mark.skipif(importlib.util.find_spec("pybullet") is None, reason="pybullet not installed")
-needs_optuna = pytest.mark.skipif(importlib.util.find_spec("optuna") is None,
-                                  reason="optuna not installed (pip install 'footsim[hpo]')")
+needs_optuna = pytest.mark.skipif(
+    importlib.util.find_spec("optuna") is None, reason="optuna not installed (pip install 'footsim[hpo]')"
+)
 
 # one level, 1 measured double step, left only: about a second of CPU
 TINY = ["tune.levels=[0.5]", "tune.warmup=0", "tune.measure=1", "tune.symmetric=false", "tune.stand_time=0.2"]
@@ -39,7 +40,7 @@ def test_walktune_composes_the_backends_walk_and_the_hpo_presets():
         assert sweeper.study_name == f"walk_{backend}" and sweeper.storage.startswith("sqlite:///")
         assert sweeper.params["walk.trunk_height"] == "interval(0.34, 0.43)"
         assert sweeper.params["walk.freq"] == "interval(1.0, 3.0)" and len(sweeper.params) == 13
-        assert all(key[len("walk."):] in cfg.walk for key in sweeper.params)  # every searched key is a walk key
+        assert all(key[len("walk.") :] in cfg.walk for key in sweeper.params)  # every searched key is a walk key
 
 
 @needs_pybullet
@@ -55,8 +56,12 @@ def test_walktune_returns_a_finite_objective_on_pybullet(tmp_path):
     commanded = 2 * cfg.walk.freq * 0.5 * 0.156
     assert result["v_forward"] > 0.3 * commanded
     saved = json.loads((tmp_path / "walktune.json").read_text())
-    assert saved["objective"] == result["objective"] and set(saved["directions"]) == {"forward", "backward", "left",
-                                                                                      "turn_left"}
+    assert saved["objective"] == result["objective"] and set(saved["directions"]) == {
+        "forward",
+        "backward",
+        "left",
+        "turn_left",
+    }
     # a walk the backend rejects (feet overlapping when turning) scores 0, it does not crash the trial
     bad = run(_compose("backend=pybullet", "walk.foot_distance=0.12", *TINY))
     assert bad["objective"] == 0.0 and not bad["stands"] and "foot_distance" in bad["invalid"]
@@ -79,13 +84,27 @@ def test_two_trial_walk_sweep_completes(tmp_path):
     sweep = tmp_path / "hpo"
     storage = f"sqlite:///{sweep / 'optuna.db'}"
     enqueue_walk(storage, "walk_pybullet", "pybullet")  # trial 0 = the current preset
-    proc = subprocess.run(["footsim-walktune", "-m", "+hpo=walk_pybullet", "backend=pybullet", *TINY,
-                           "hydra.sweeper.n_trials=2", f"hydra.sweep.dir={sweep}"],
-                          capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    proc = subprocess.run(
+        [
+            "footsim-walktune",
+            "-m",
+            "+hpo=walk_pybullet",
+            "backend=pybullet",
+            *TINY,
+            "hydra.sweeper.n_trials=2",
+            f"hydra.sweep.dir={sweep}",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=tmp_path,
+    )
     assert proc.returncode == 0, f"{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
     trials = optuna.load_study(study_name="walk_pybullet", storage=storage).trials
     assert [t.state.name for t in trials] == ["COMPLETE", "COMPLETE"]
-    assert trials[0].params["walk.freq"] == pytest.approx(_compose("backend=pybullet").walk.freq) and trials[0].value > 0  # the enqueued preset
+    assert (
+        trials[0].params["walk.freq"] == pytest.approx(_compose("backend=pybullet").walk.freq) and trials[0].value > 0
+    )  # the enqueued preset
     for t in trials:
         assert math.isfinite(t.value) and t.user_attrs["objective"] == pytest.approx(t.value)  # walktune.json
         assert (sweep / str(t.number) / "walktune.json").is_file()

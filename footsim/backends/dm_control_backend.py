@@ -88,8 +88,6 @@ from dm_control.rl.control import PhysicsError
 
 from footsim.backends.base import RenderOverlay
 from footsim.backends.mujoco_backend import (
-    MujocoModelOptions,
-    quat_fused_roll_pitch,
     _BALL_RGBA,
     _OBSTACLE_BIT,
     _OBSTACLE_RGBA,
@@ -99,6 +97,7 @@ from footsim.backends.mujoco_backend import (
     CAMERA_ELEVATION,
     N_CYLINDERS,
     OBSTACLE_HEIGHT,
+    MujocoModelOptions,
     ServoFeedForward,
     draw_overlay,
     fatal_warning_ids,
@@ -106,6 +105,7 @@ from footsim.backends.mujoco_backend import (
     foot_contact,
     levelling_quat,
     obstacle_geometry,
+    quat_fused_roll_pitch,
     require_rendering,
 )
 from footsim.backends.mujoco_randomization import MujocoRandomization
@@ -139,8 +139,9 @@ class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # rand
     def build(self, robot: RobotSpec, physics_dt: float) -> None:
         self.robot = robot
         self._model_joints(robot)
-        model = mjcf.from_xml_string(build_mjcf(robot, floor=True, timestep=physics_dt,
-                                                rigid_upper_body=self.rigid_upper_body).xml)
+        model = mjcf.from_xml_string(
+            build_mjcf(robot, floor=True, timestep=physics_dt, rigid_upper_body=self.rigid_upper_body).xml
+        )
         model.option.integrator = self.integrator
         offscreen = model.visual.get_children("global")
         offscreen.offwidth = offscreen.offheight = self.max_render_size
@@ -153,10 +154,14 @@ class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # rand
 
         self._pool = [
             model.worldbody.add(
-                "geom", name=name, type="sphere" if name == "ball" else "cylinder",
-                size=[0.1] if name == "ball" else [0.1, OBSTACLE_HEIGHT / 2], pos=_PARK,
+                "geom",
+                name=name,
+                type="sphere" if name == "ball" else "cylinder",
+                size=[0.1] if name == "ball" else [0.1, OBSTACLE_HEIGHT / 2],
+                pos=_PARK,
                 rgba=_BALL_RGBA if name == "ball" else _OBSTACLE_RGBA,
-                contype=_OBSTACLE_BIT, conaffinity=_OBSTACLE_BIT,
+                contype=_OBSTACLE_BIT,
+                conaffinity=_OBSTACLE_BIT,
             )
             for name in [f"obstacle{i}" for i in range(N_CYLINDERS)] + ["ball"]
         ]
@@ -188,7 +193,7 @@ class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # rand
         data = physics.data
         self._ctrl, self._leg_ids = data.ctrl, np.asarray(self._legs.element_id, dtype=np.intp)
         adr = int(self._root.qposadr)
-        self._qpos, self._qvel, self._root_q = data.qpos, data.qvel, data.qpos[adr:adr + 7]
+        self._qpos, self._qvel, self._root_q = data.qpos, data.qvel, data.qpos[adr : adr + 7]
         self._warnings = data.warning.number
         self._soles = physics.bind([find("site", sole_site(s)) for s in ("left", "right")])
         self._pool_bound = physics.bind(self._pool)
@@ -218,7 +223,7 @@ class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # rand
                 actuator = model.find("actuator", name)
                 bias = np.zeros(3)
                 given = np.array(actuator.biasprm, dtype=float)
-                bias[:len(given)] = given[:3]
+                bias[: len(given)] = given[:3]
                 bias[2] = -self.servo_kv
                 actuator.biasprm = bias
         if self.servo_damping_scale != 1.0:  # joint damping (the servos' back-EMF drag) of the robot joints
@@ -234,7 +239,9 @@ class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # rand
 
     def set_obstacles(self, scene: Scene) -> None:
         if len(scene.obstacles) > N_CYLINDERS:
-            raise ValueError(f"the dm_control backend holds at most {N_CYLINDERS} obstacles, scene has {len(scene.obstacles)}")
+            raise ValueError(
+                f"the dm_control backend holds at most {N_CYLINDERS} obstacles, scene has {len(scene.obstacles)}"
+            )
         self._park_all()
         placed = [(geom, o, False) for geom, o in zip(self._pool[:-1], scene.obstacles)]
         if scene.ball is not None:
@@ -242,7 +249,8 @@ class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # rand
         for geom, obstacle, ball in placed:
             bound = self.physics.bind(geom)
             bound.size, bound.pos, bound.rbound, bound.aabb = obstacle_geometry(
-                obstacle.x, obstacle.y, obstacle.r + self.obstacle_inflation, ball)
+                obstacle.x, obstacle.y, obstacle.r + self.obstacle_inflation, ball
+            )
             bound.contype = bound.conaffinity = _OBSTACLE_BIT
             bound.rgba[3] = 1.0
 

@@ -29,7 +29,9 @@ def require_rendering() -> None:
     if _MUJOCO_GL_AT_IMPORT in ("disable", "disabled", "off", "false", "0"):
         raise RuntimeError(
             f"rendering is disabled in this process (MUJOCO_GL={_MUJOCO_GL_AT_IMPORT} when mujoco was "
-            "imported); start it with MUJOCO_GL=egl (headless) or unset to render")
+            "imported); start it with MUJOCO_GL=egl (headless) or unset to render"
+        )
+
 
 from footsim.backends.base import RenderOverlay
 from footsim.backends.mujoco_randomization import MujocoRandomization
@@ -51,22 +53,34 @@ _OBSTACLE_RGBA = [0.55, 0.35, 0.2, 1.0]
 _BALL_RGBA = [0.95, 0.95, 0.95, 1.0]
 #: MuJoCo warnings that mean the state can no longer be trusted (MuJoCo resets mjData itself
 #: after a bad qacc, so the counters are the only trace of a blow-up).
-_FATAL_WARNINGS = ("mjWARN_BADQACC", "mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADCTRL",
-                   "mjWARN_CONTACTFULL", "mjWARN_CNSTRFULL", "mjWARN_INERTIA")
+_FATAL_WARNINGS = (
+    "mjWARN_BADQACC",
+    "mjWARN_BADQPOS",
+    "mjWARN_BADQVEL",
+    "mjWARN_BADCTRL",
+    "mjWARN_CONTACTFULL",
+    "mjWARN_CNSTRFULL",
+    "mjWARN_INERTIA",
+)
 #: The render camera: tracks the torso from this distance [m], elevation and azimuth [deg].
 CAMERA_DISTANCE, CAMERA_ELEVATION, CAMERA_AZIMUTH = 2.5, -30.0, -150.0
 
 
 # -- helpers shared with the dm-control backend (same engine, same model options) ----------
-def check_model_options(torsional_friction: float | None, servo_kp_scale: float,
-                        servo_damping_scale: float) -> tuple[float | None, float, float]:
+def check_model_options(
+    torsional_friction: float | None, servo_kp_scale: float, servo_damping_scale: float
+) -> tuple[float | None, float, float]:
     """Validate the backend's model options; returns them as floats (torsional friction may be None)."""
     _check_non_negative("torsional_friction", torsional_friction, allow_none=True)
     if not (math.isfinite(servo_kp_scale) and servo_kp_scale > 0):
         raise ValueError(f"backend.servo_kp_scale must be > 0, got {servo_kp_scale!r}")
     if not (math.isfinite(servo_damping_scale) and servo_damping_scale >= 0):
         raise ValueError(f"backend.servo_damping_scale must be >= 0, got {servo_damping_scale!r}")
-    return (None if torsional_friction is None else float(torsional_friction)), float(servo_kp_scale), float(servo_damping_scale)
+    return (
+        (None if torsional_friction is None else float(torsional_friction)),
+        float(servo_kp_scale),
+        float(servo_damping_scale),
+    )
 
 
 class ServoFeedForward:
@@ -107,7 +121,9 @@ def _check_non_negative(key: str, value: float | None, allow_none: bool = False)
         raise ValueError(f"backend.{key} must be >= 0{' (or null)' if allow_none else ''}, got {value!r}")
 
 
-def foot_contact(friction, torsional_friction: float | None, rolling_friction: float | None) -> tuple[int, list[float]] | None:
+def foot_contact(
+    friction, torsional_friction: float | None, rolling_friction: float | None
+) -> tuple[int, list[float]] | None:
     """``(condim, friction)`` of a foot geom with these options, or None to leave it as built.
 
     Torsional friction needs condim 4, rolling friction condim 6 (MuJoCo: torque limits of
@@ -115,7 +131,7 @@ def foot_contact(friction, torsional_friction: float | None, rolling_friction: f
     if torsional_friction is None and rolling_friction is None:
         return None
     friction = list(friction) if friction is not None else list(CONTACT_FRICTION)
-    friction += list(CONTACT_FRICTION[len(friction):])  # MJCF may omit trailing values
+    friction += list(CONTACT_FRICTION[len(friction) :])  # MJCF may omit trailing values
     if torsional_friction is not None:
         friction[1] = torsional_friction
     if rolling_friction is not None:
@@ -128,8 +144,10 @@ def quat_fused_roll_pitch(quat) -> tuple[float, float]:
     -R[2,0] without building it (``physics3d.fused_roll_pitch``)."""
     w, x, y, z = quat.tolist()
     s_pitch, s_roll = 2.0 * (w * y - x * z), 2.0 * (y * z + w * x)
-    return (math.asin(-1.0 if s_roll < -1.0 else 1.0 if s_roll > 1.0 else s_roll),
-            math.asin(-1.0 if s_pitch < -1.0 else 1.0 if s_pitch > 1.0 else s_pitch))
+    return (
+        math.asin(-1.0 if s_roll < -1.0 else 1.0 if s_roll > 1.0 else s_roll),
+        math.asin(-1.0 if s_pitch < -1.0 else 1.0 if s_pitch > 1.0 else s_pitch),
+    )
 
 
 def obstacle_geometry(x: float, y: float, r: float, ball: bool):
@@ -168,8 +186,14 @@ def _add_scene_geom(scene, kind, size, pos, mat, rgba):
         return None
     # The whole buffer through the base class: dm_control's MjvScene subclass trims .geoms to ngeom.
     geom = mujoco.MjvScene.geoms.__get__(scene)[scene.ngeom]
-    mujoco.mjv_initGeom(geom, kind, np.asarray(size, float), np.asarray(pos, float),
-                        np.asarray(mat, float).ravel(), np.asarray(rgba, np.float32))
+    mujoco.mjv_initGeom(
+        geom,
+        kind,
+        np.asarray(size, float),
+        np.asarray(pos, float),
+        np.asarray(mat, float).ravel(),
+        np.asarray(rgba, np.float32),
+    )
     scene.ngeom += 1
     return geom
 
@@ -206,15 +230,25 @@ INTEGRATORS = ("euler", "implicit", "implicitfast", "rk4")
 class MujocoModelOptions:
     """The backend options both MuJoCo-engine sims (raw bindings, dm-control) take, validated once."""
 
-    def __init__(self, integrator: str = "implicitfast", max_render_size: int = 1024,
-                 torsional_friction: float | None = None, rolling_friction: float | None = None,
-                 servo_kp_scale: float = 1.0, servo_damping_scale: float = 1.0, servo_kv: float = 0.0,
-                 obstacle_inflation: float = 0.0, control_dt: float = 0.01, rigid_upper_body: bool = True):
+    def __init__(
+        self,
+        integrator: str = "implicitfast",
+        max_render_size: int = 1024,
+        torsional_friction: float | None = None,
+        rolling_friction: float | None = None,
+        servo_kp_scale: float = 1.0,
+        servo_damping_scale: float = 1.0,
+        servo_kv: float = 0.0,
+        obstacle_inflation: float = 0.0,
+        control_dt: float = 0.01,
+        rigid_upper_body: bool = True,
+    ):
         if integrator not in INTEGRATORS:
             raise ValueError(f"backend.integrator must be one of {', '.join(INTEGRATORS)}; got {integrator!r}")
         self.integrator = integrator
         self.torsional_friction, self.servo_kp_scale, self.servo_damping_scale = check_model_options(
-            torsional_friction, servo_kp_scale, servo_damping_scale)
+            torsional_friction, servo_kp_scale, servo_damping_scale
+        )
         _check_non_negative("rolling_friction", rolling_friction, allow_none=True)
         self.rolling_friction = None if rolling_friction is None else float(rolling_friction)
         _check_non_negative("obstacle_inflation", obstacle_inflation)
@@ -277,7 +311,9 @@ class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomi
             m.actuator_biasprm[:, 1] *= self.servo_kp_scale
         if self.servo_damping_scale != 1.0:  # joint damping (the servos' back-EMF drag) of the robot joints
             for name in self.joint_names:
-                m.dof_damping[m.jnt_dofadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)]] *= self.servo_damping_scale
+                m.dof_damping[m.jnt_dofadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)]] *= (
+                    self.servo_damping_scale
+                )
         self.data = d = mujoco.MjData(m)
 
         def jid(name):
@@ -310,7 +346,9 @@ class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomi
             # kv/kp * qdot_target to ctrl, which makes it kp (q_t - q) + kv (qdot_t - qdot).
             m.actuator_biasprm[self._leg_ctrl, 2] = -self.servo_kv
             self._feed_forward = ServoFeedForward(self.servo_kv, m.actuator_gainprm[self._leg_ctrl, 0], self.control_dt)
-        self._obstacle_geoms = np.array([mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, n) for n in names], dtype=np.intp)
+        self._obstacle_geoms = np.array(
+            [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, n) for n in names], dtype=np.intp
+        )
         self._ball_geom = int(self._obstacle_geoms[-1])
         self._obstacle_mask = np.zeros(m.ngeom, dtype=bool)
         self._obstacle_mask[self._obstacle_geoms] = True
@@ -318,7 +356,13 @@ class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomi
         self._sole_sites = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, n) for n in ("l_sole", "r_sole")]
         self._warning_ids = fatal_warning_ids()
         self._warnings = d.warning.number  # a view: d.warning builds a new wrapper per access
-        self._status_arrays = (d.qpos[self._free_q:self._free_q + 7], d.qpos, d.qvel, self._warnings, self._warning_ids)
+        self._status_arrays = (
+            d.qpos[self._free_q : self._free_q + 7],
+            d.qpos,
+            d.qvel,
+            self._warnings,
+            self._warning_ids,
+        )
         self._rot = np.zeros(9)
         self._step = mujoco.mj_step
         self._park_all()
@@ -327,7 +371,8 @@ class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomi
     def _place(self, geom: int, x: float, y: float, r: float, ball: bool) -> None:
         m = self.model
         m.geom_size[geom], m.geom_pos[geom], m.geom_rbound[geom], m.geom_aabb[geom] = obstacle_geometry(
-            x, y, r + self.obstacle_inflation, ball)
+            x, y, r + self.obstacle_inflation, ball
+        )
         m.geom_contype[geom] = m.geom_conaffinity[geom] = _OBSTACLE_BIT
         m.geom_rgba[geom, 3] = 1.0
 
@@ -343,7 +388,9 @@ class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomi
 
     def set_obstacles(self, scene: Scene) -> None:
         if len(scene.obstacles) > N_CYLINDERS:
-            raise ValueError(f"the MuJoCo backend holds at most {N_CYLINDERS} obstacles, scene has {len(scene.obstacles)}")
+            raise ValueError(
+                f"the MuJoCo backend holds at most {N_CYLINDERS} obstacles, scene has {len(scene.obstacles)}"
+            )
         self._park_all()
         for geom, obstacle in zip(self._obstacle_geoms[:-1], scene.obstacles):
             self._place(int(geom), obstacle.x, obstacle.y, obstacle.r, ball=False)
@@ -354,8 +401,8 @@ class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomi
     def reset_robot(self, base_position: np.ndarray, joint_positions: dict[str, float]) -> None:
         m, d = self.model, self.data
         mujoco.mj_resetData(m, d)  # zero velocities, clear warnings, time, contacts
-        d.qpos[self._free_q:self._free_q + 3] = base_position
-        d.qpos[self._free_q + 3:self._free_q + 7] = (1.0, 0.0, 0.0, 0.0)
+        d.qpos[self._free_q : self._free_q + 3] = base_position
+        d.qpos[self._free_q + 3 : self._free_q + 7] = (1.0, 0.0, 0.0, 0.0)
         for name, angle in joint_positions.items():
             if name in self._rigid_joints:
                 continue  # welded at its walk-ready angle
@@ -368,7 +415,7 @@ class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomi
         # the robot so the lowest sole touches the floor.  Otherwise it starts on a heel or toe
         # and is still rocking when the first step begins.
         mujoco.mj_kinematics(m, d)
-        d.qpos[self._free_q + 3:self._free_q + 7] = levelling_quat(d.site_xmat[self._sole_sites[0]])
+        d.qpos[self._free_q + 3 : self._free_q + 7] = levelling_quat(d.site_xmat[self._sole_sites[0]])
         mujoco.mj_kinematics(m, d)
         lowest = min(self._sole_height(s) for s in ("l_sole", "r_sole"))
         d.qpos[self._free_q + 2] -= lowest
@@ -384,7 +431,7 @@ class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomi
 
     def control_arrays(self):
         q, ff = self._free_q, self._feed_forward
-        return self.data.qpos[q + 3:q + 7], self.data.ctrl, self._leg_ctrl, None if ff is None else ff.state
+        return self.data.qpos[q + 3 : q + 7], self.data.ctrl, self._leg_ctrl, None if ff is None else ff.state
 
     def status_arrays(self):
         return self._status_arrays
@@ -394,11 +441,11 @@ class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomi
 
     def base_pose(self) -> tuple[np.ndarray, np.ndarray]:
         q = self.data.qpos
-        mujoco.mju_quat2Mat(self._rot, q[self._free_q + 3:self._free_q + 7])
-        return q[self._free_q:self._free_q + 3].copy(), self._rot.reshape(3, 3).copy()
+        mujoco.mju_quat2Mat(self._rot, q[self._free_q + 3 : self._free_q + 7])
+        return q[self._free_q : self._free_q + 3].copy(), self._rot.reshape(3, 3).copy()
 
     def base_tilt(self) -> tuple[float, float]:
-        return quat_fused_roll_pitch(self.data.qpos[self._free_q + 3:self._free_q + 7])
+        return quat_fused_roll_pitch(self.data.qpos[self._free_q + 3 : self._free_q + 7])
 
     def obstacle_contact(self) -> bool:
         d = self.data

@@ -36,10 +36,19 @@ from dataclasses import dataclass
 import numpy as np
 
 #: The physics terms both MuJoCo-based sims apply.
-MUJOCO_TERMS = frozenset({
-    "floor_friction", "foot_friction", "link_mass_scale", "torso_com_offset_x", "torso_com_offset_y",
-    "actuator_kp_scale", "torque_limit_scale", "joint_damping_scale", "terrain_slope",
-})
+MUJOCO_TERMS = frozenset(
+    {
+        "floor_friction",
+        "foot_friction",
+        "link_mass_scale",
+        "torso_com_offset_x",
+        "torso_com_offset_y",
+        "actuator_kp_scale",
+        "torque_limit_scale",
+        "joint_damping_scale",
+        "terrain_slope",
+    }
+)
 _FRICTION_TERMS = ("floor_friction", "foot_friction")
 _MASS_TERMS = ("link_mass_scale", "torso_com_offset_x", "torso_com_offset_y")
 
@@ -84,14 +93,23 @@ def capture(model, torso: int, foot_bodies, floor_geom: int, actuators, dofs) ->
     rows = np.concatenate([foot_geoms, [floor_geom]])
     actuators, dofs = np.asarray(actuators, dtype=np.intp), np.asarray(dofs, dtype=np.intp)
     return MujocoNominal(
-        robot_bodies=np.array(robot, dtype=np.intp), torso=int(torso), foot_geoms=foot_geoms, floor_geom=int(floor_geom),
-        actuators=actuators, dofs=dofs,
-        body_mass=model.body_mass[robot].copy(), body_inertia=model.body_inertia[robot].copy(),
+        robot_bodies=np.array(robot, dtype=np.intp),
+        torso=int(torso),
+        foot_geoms=foot_geoms,
+        floor_geom=int(floor_geom),
+        actuators=actuators,
+        dofs=dofs,
+        body_mass=model.body_mass[robot].copy(),
+        body_inertia=model.body_inertia[robot].copy(),
         torso_ipos=model.body_ipos[torso].copy(),
-        geom_friction=model.geom_friction[rows].copy(), geom_priority=model.geom_priority[rows].copy(),
-        gain=model.actuator_gainprm[actuators, 0].copy(), bias=model.actuator_biasprm[actuators, 1].copy(),
-        forcerange=model.actuator_forcerange[actuators].copy(), damping=model.dof_damping[dofs].copy(),
-        floor_quat=model.geom_quat[floor_geom].copy(), floor_sameframe=int(model.geom_sameframe[floor_geom]),
+        geom_friction=model.geom_friction[rows].copy(),
+        geom_priority=model.geom_priority[rows].copy(),
+        gain=model.actuator_gainprm[actuators, 0].copy(),
+        bias=model.actuator_biasprm[actuators, 1].copy(),
+        forcerange=model.actuator_forcerange[actuators].copy(),
+        damping=model.dof_damping[dofs].copy(),
+        floor_quat=model.geom_quat[floor_geom].copy(),
+        floor_sameframe=int(model.geom_sameframe[floor_geom]),
     )
 
 
@@ -128,8 +146,9 @@ def apply(model, nominal: MujocoNominal, values: dict[str, float], mujoco) -> No
         scale = _positive(values, "link_mass_scale")
         m.body_mass[n.robot_bodies] = n.body_mass * scale
         m.body_inertia[n.robot_bodies] = n.body_inertia * scale
-        m.body_ipos[n.torso] = n.torso_ipos + np.array([values.get("torso_com_offset_x", 0.0),
-                                                        values.get("torso_com_offset_y", 0.0), 0.0])
+        m.body_ipos[n.torso] = n.torso_ipos + np.array(
+            [values.get("torso_com_offset_x", 0.0), values.get("torso_com_offset_y", 0.0), 0.0]
+        )
         if n.scratch is None:
             n.scratch = mujoco.MjData(m)
         mujoco.mj_setConst(m, n.scratch)
@@ -203,7 +222,9 @@ class MujocoRandomization:
 
         body, joint, actuator = mujoco.mjtObj.mjOBJ_BODY, mujoco.mjtObj.mjOBJ_JOINT, mujoco.mjtObj.mjOBJ_ACTUATOR
         nominal = capture(
-            model, ident(body, robot.base_link), [ident(body, robot.foot_link(s)) for s in ("left", "right")],
+            model,
+            ident(body, robot.base_link),
+            [ident(body, robot.foot_link(s)) for s in ("left", "right")],
             ident(mujoco.mjtObj.mjOBJ_GEOM, FLOOR_GEOM),
             [ident(actuator, n) for n in self.joint_names],  # the joints the model has
             [int(model.jnt_dofadr[ident(joint, n)]) for n in self.joint_names],

@@ -9,8 +9,8 @@ bookkeeping, timing and the planar pose — lives here, once.
 from __future__ import annotations
 
 import dataclasses
-import math
 import inspect
+import math
 from abc import ABC, abstractmethod
 from collections import deque
 from collections.abc import Callable
@@ -19,8 +19,8 @@ from functools import partial
 import numpy as np
 
 from footsim.backends.base import Backend, RenderOverlay, StepResult
-from footsim.kernels3d import all_finite, control_tick, quick_status, stabilized_targets
 from footsim.geometry import Pose2D
+from footsim.kernels3d import all_finite, control_tick, quick_status, stabilized_targets
 from footsim.robots.spec import RobotSpec
 from footsim.tasks.scenes import Scene
 from footsim.walk.engine import QuinticWalk
@@ -30,8 +30,9 @@ from footsim.walk.params import WalkParams
 
 #: Randomization terms the driver applies itself, on every 3D backend (the sim's own terms are
 #: in ``PhysicsSim.capabilities``).
-DRIVER_TERMS = frozenset({"control_latency", "push_force", "push_duration", "push_interval",
-                          "walk_freq_scale", "walk_trunk_height_scale"})
+DRIVER_TERMS = frozenset(
+    {"control_latency", "push_force", "push_duration", "push_interval", "walk_freq_scale", "walk_trunk_height_scale"}
+)
 #: Push timing when a preset sets ``push_force`` but not these [s].
 DEFAULT_PUSH_DURATION, DEFAULT_PUSH_INTERVAL = 0.1, 2.0
 
@@ -77,7 +78,9 @@ class TrunkStabilizer:
     GAINS = ("hip_roll", "hip_pitch", "ankle_roll", "ankle_pitch")
     _HIP_ROLL, _HIP_PITCH, _ANKLE_PITCH, _ANKLE_ROLL = [1, 7], [2, 8], [4, 10], [5, 11]  # LEG_JOINT_NAMES
 
-    def __init__(self, hip_roll: float = 0.0, hip_pitch: float = 0.0, ankle_roll: float = 0.0, ankle_pitch: float = 0.0):
+    def __init__(
+        self, hip_roll: float = 0.0, hip_pitch: float = 0.0, ankle_roll: float = 0.0, ankle_pitch: float = 0.0
+    ):
         gains = {"hip_roll": hip_roll, "hip_pitch": hip_pitch, "ankle_roll": ankle_roll, "ankle_pitch": ankle_pitch}
         for key, value in gains.items():
             if not (isinstance(value, (int, float)) and math.isfinite(value)):
@@ -93,7 +96,7 @@ class TrunkStabilizer:
         self._pitch_gains[self._HIP_PITCH], self._pitch_gains[self._ANKLE_PITCH] = self.hip_pitch, self.ankle_pitch
 
     @classmethod
-    def from_config(cls, config) -> "TrunkStabilizer":
+    def from_config(cls, config) -> TrunkStabilizer:
         if config is None:
             return cls()
         config = dict(config)
@@ -102,7 +105,9 @@ class TrunkStabilizer:
             raise ValueError(f"backend.stabilizer: unknown key(s) {unknown}; valid: {list(cls.GAINS)}")
         return cls(**config)
 
-    def correct(self, targets: np.ndarray, tilt: tuple[float, float], planned_roll: float, planned_pitch: float) -> np.ndarray:
+    def correct(
+        self, targets: np.ndarray, tilt: tuple[float, float], planned_roll: float, planned_pitch: float
+    ) -> np.ndarray:
         """``targets`` (12,) corrected for the measured fused ``tilt`` = (roll, pitch) (a new array)."""
         return targets + (self._roll_gains * (tilt[0] - planned_roll) + self._pitch_gains * (tilt[1] - planned_pitch))
 
@@ -110,11 +115,13 @@ class TrunkStabilizer:
 def quat_to_matrix(q: np.ndarray) -> np.ndarray:
     """Rotation matrix of a unit quaternion (w, x, y, z)."""
     w, x, y, z = (float(v) for v in q)
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 class PhysicsSim(ABC):
@@ -157,8 +164,9 @@ class PhysicsSim(ABC):
         default, or while the sim holds an error of its own): the driver calls the verbs."""
         return None
 
-    def stabilized_ticks(self, targets: np.ndarray, trunk: np.ndarray, gains: np.ndarray,
-                         substeps: int) -> Callable[[int, int], None] | None:
+    def stabilized_ticks(
+        self, targets: np.ndarray, trunk: np.ndarray, gains: np.ndarray, substeps: int
+    ) -> Callable[[int, int], None] | None:
         """For a sim that can run stabilized control ticks cheaper than the verbs: ``run(k0, k1)``
         doing control ticks ``k0 … k1 − 1``, each commanding ``targets[k]`` corrected by the
         stabilizer ``gains`` for the measured tilt against ``trunk[k]`` and then ``substeps``
@@ -258,8 +266,19 @@ class Physics3DBackend(Backend):
             raise ValueError(f"backend {self.name}: unknown option(s) {sorted(sim_options)}")
         try:
             self.stabilizer = TrunkStabilizer.from_config(stabilizer)
-            self._init_driver(robot, walk, sim, control_dt, physics_dt, fall_threshold, collision_ends_episode,
-                              contact_check_every, settle_time, out_of_bounds, render_size)
+            self._init_driver(
+                robot,
+                walk,
+                sim,
+                control_dt,
+                physics_dt,
+                fall_threshold,
+                collision_ends_episode,
+                contact_check_every,
+                settle_time,
+                out_of_bounds,
+                render_size,
+            )
         except BaseException:
             sim.close()
             raise
@@ -270,17 +289,33 @@ class Physics3DBackend(Backend):
         accepted = set(inspect.signature(self.sim_class.__init__).parameters) - {"self"}
         unknown = sorted(set(options) - accepted)
         if unknown:
-            raise ValueError(f"backend {self.name}: unknown option(s) {unknown}; "
-                             f"simulator options: {sorted(accepted - {'control_dt'})}")
+            raise ValueError(
+                f"backend {self.name}: unknown option(s) {unknown}; "
+                f"simulator options: {sorted(accepted - {'control_dt'})}"
+            )
         if "control_dt" in accepted:
             options = {**options, "control_dt": control_dt}
         return self.sim_class(**options)
 
-    def _init_driver(self, robot, walk, sim, control_dt, physics_dt, fall_threshold, collision_ends_episode,
-                     contact_check_every, settle_time, out_of_bounds, render_size) -> None:
+    def _init_driver(
+        self,
+        robot,
+        walk,
+        sim,
+        control_dt,
+        physics_dt,
+        fall_threshold,
+        collision_ends_episode,
+        contact_check_every,
+        settle_time,
+        out_of_bounds,
+        render_size,
+    ) -> None:
         substeps = control_dt / physics_dt
         if not (physics_dt > 0 and control_dt > 0 and abs(substeps - round(substeps)) < 1e-6):
-            raise ValueError(f"backend.control_dt ({control_dt}) must be a positive multiple of backend.physics_dt ({physics_dt})")
+            raise ValueError(
+                f"backend.control_dt ({control_dt}) must be a positive multiple of backend.physics_dt ({physics_dt})"
+            )
         if not 0 < fall_threshold < math.pi / 2:
             raise ValueError(f"backend.fall_threshold must be in (0, pi/2) rad, got {fall_threshold!r}")
         if int(contact_check_every) < 1:
@@ -296,7 +331,9 @@ class Physics3DBackend(Backend):
         self.render_size = tuple(render_size)
         self.geometry = FootstepGeometry(robot.step_limits, robot.foot_length, robot.foot_width, walk.foot_distance)
         self._joint_limits = np.vstack([robot.leg_limits(Side.LEFT), robot.leg_limits(Side.RIGHT)])
-        self.engine = QuinticWalk(walk, self.geometry, robot.leg_geometry, self.control_dt, joint_limits=self._joint_limits)
+        self.engine = QuinticWalk(
+            walk, self.geometry, robot.leg_geometry, self.control_dt, joint_limits=self._joint_limits
+        )
         self.sim.build(robot, self.physics_dt)
         self.scene: Scene | None = None
         # Randomization state (see apply_randomization): the walk actually used, latency, pushes.
@@ -361,12 +398,15 @@ class Physics3DBackend(Backend):
     def _rebuild_walk(self) -> None:
         v = self._values
         walk = dataclasses.replace(
-            self.walk_nominal, freq=self.walk_nominal.freq * v.get("walk_freq_scale", 1.0),
-            trunk_height=self.walk_nominal.trunk_height * v.get("walk_trunk_height_scale", 1.0))
+            self.walk_nominal,
+            freq=self.walk_nominal.freq * v.get("walk_freq_scale", 1.0),
+            trunk_height=self.walk_nominal.trunk_height * v.get("walk_trunk_height_scale", 1.0),
+        )
         if walk != self.walk_current:
             self.walk_current = walk
-            self.engine = QuinticWalk(walk, self.geometry, self.robot.leg_geometry, self.control_dt,
-                                      joint_limits=self._joint_limits)
+            self.engine = QuinticWalk(
+                walk, self.geometry, self.robot.leg_geometry, self.control_dt, joint_limits=self._joint_limits
+            )
 
     def _send_targets(self, target: np.ndarray) -> None:
         """Joint targets through the latency line (``control_latency`` ticks late) and the push
@@ -374,7 +414,9 @@ class Physics3DBackend(Backend):
         if self._latency:
             line = self._delay
             if line is None or line.maxlen != self._latency + 1:  # latency redrawn mid-episode
-                line = self._delay = deque([line[-1] if line else target] * (self._latency + 1), maxlen=self._latency + 1)
+                line = self._delay = deque(
+                    [line[-1] if line else target] * (self._latency + 1), maxlen=self._latency + 1
+                )
             line.append(target)
             target = line[0]
         self.sim.set_leg_targets(target)
@@ -419,6 +461,7 @@ class Physics3DBackend(Backend):
             for k in range(k0, k1):
                 control(k)
                 advance(substeps)
+
         return run
 
     def _control(self, targets, trunk, gains, plain):
@@ -436,6 +479,7 @@ class Physics3DBackend(Backend):
             def tick_and_push(k):
                 tick(k)
                 self._push_tick()
+
             return tick_and_push
         set_targets = self.sim.set_leg_targets if plain else self._send_targets
         if gains is None:
@@ -494,9 +538,16 @@ class Physics3DBackend(Backend):
         if self.randomization_detail:
             info["randomization_detail"] = dict(self.randomization_detail)
         return StepResult(
-            pose=pose, duration_s=ticks * self.control_dt, feet=trajectory.feet, executed=trajectory.executed,
-            fell=fell, collided=collided, sim_error=error, info=info,
-            tilt=self._tilt if error is None else (0.0, 0.0), max_tilt=self._max_tilt if error is None else 0.0,
+            pose=pose,
+            duration_s=ticks * self.control_dt,
+            feet=trajectory.feet,
+            executed=trajectory.executed,
+            fell=fell,
+            collided=collided,
+            sim_error=error,
+            info=info,
+            tilt=self._tilt if error is None else (0.0, 0.0),
+            max_tilt=self._max_tilt if error is None else 0.0,
         )
 
     # -- truth ----------------------------------------------------------------------------
@@ -541,7 +592,9 @@ class Physics3DBackend(Backend):
     def stop_walking(self) -> float:
         """Run the engine's stop sequence (back to standing); returns its duration [s]."""
         trajectory = self.engine.stop()
-        set_targets = self._send_targets if (self._latency or self._push_ticks is not None) else self.sim.set_leg_targets
+        set_targets = (
+            self._send_targets if (self._latency or self._push_ticks is not None) else self.sim.set_leg_targets
+        )
         for target in trajectory.joint_targets:
             set_targets(target)
             self.sim.advance(self.substeps)

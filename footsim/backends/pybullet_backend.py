@@ -149,10 +149,19 @@ def _release(client: int, path: str | None, key: tuple | None, world: dict | Non
 
 
 #: Physics randomization terms the PyBullet sim applies (see ``apply_physics_randomization``).
-PYBULLET_TERMS = frozenset({
-    "floor_friction", "foot_friction", "link_mass_scale", "torso_com_offset_x", "torso_com_offset_y",
-    "actuator_kp_scale", "torque_limit_scale", "joint_damping_scale", "terrain_slope",
-})
+PYBULLET_TERMS = frozenset(
+    {
+        "floor_friction",
+        "foot_friction",
+        "link_mass_scale",
+        "torso_com_offset_x",
+        "torso_com_offset_y",
+        "actuator_kp_scale",
+        "torque_limit_scale",
+        "joint_damping_scale",
+        "terrain_slope",
+    }
+)
 
 
 @functools.cache
@@ -160,8 +169,10 @@ def _compiled_per_tick():
     """``bullet_control_tick`` and ``bullet_base_ok`` for the argument types they get here (Bullet's
     tuples of floats, float64 C arrays, floats), without numba's per-call type resolution."""
     v3, quat, tick_state = (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0), np.zeros((5, 14))
-    return (typed_entry(bullet_control_tick, tick_state, 0, quat),
-            typed_entry(bullet_base_ok, v3, quat, v3, v3, np.zeros(3), np.eye(3), 1.0, 1.0, np.zeros(2)))
+    return (
+        typed_entry(bullet_control_tick, tick_state, 0, quat),
+        typed_entry(bullet_base_ok, v3, quat, v3, v3, np.zeros(3), np.eye(3), 1.0, 1.0, np.zeros(2)),
+    )
 
 
 class PybulletSim(PhysicsSim):
@@ -190,8 +201,12 @@ class PybulletSim(PhysicsSim):
         camera_distance: float = 2.0,
         camera_pitch: float = -35.0,
     ):
-        for key, value in {"lateral_friction": lateral_friction, "spinning_friction": spinning_friction,
-                           "rolling_friction": rolling_friction, "velocity_gain": velocity_gain}.items():
+        for key, value in {
+            "lateral_friction": lateral_friction,
+            "spinning_friction": spinning_friction,
+            "rolling_friction": rolling_friction,
+            "velocity_gain": velocity_gain,
+        }.items():
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"backend.{key} must be a non-negative number, got {value!r}")
         if not (math.isfinite(position_gain_scale) and position_gain_scale > 0):
@@ -200,15 +215,20 @@ class PybulletSim(PhysicsSim):
             raise ValueError(f"backend.solver_iterations must be >= 1, got {solver_iterations!r}")
         if motor not in ("position", "servo"):
             raise ValueError(f"backend.motor must be 'position' or 'servo', got {motor!r}")
-        for key, value in {"servo_damping_scale": servo_damping_scale, "servo_kv": servo_kv,
-                           "armature_scale": armature_scale}.items():
+        for key, value in {
+            "servo_damping_scale": servo_damping_scale,
+            "servo_kv": servo_kv,
+            "armature_scale": armature_scale,
+        }.items():
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"backend.{key} must be a non-negative number, got {value!r}")
         if not (math.isfinite(servo_kp_scale) and servo_kp_scale > 0):
             raise ValueError(f"backend.servo_kp_scale must be positive, got {servo_kp_scale!r}")
         if motor == "servo" and armature_scale == 0:
-            raise ValueError("backend.motor=servo needs backend.armature_scale > 0: explicit servo torques on the "
-                             "bare link inertias (down to 2e-5 kg m^2) diverge at any usable timestep")
+            raise ValueError(
+                "backend.motor=servo needs backend.armature_scale > 0: explicit servo torques on the "
+                "bare link inertias (down to 2e-5 kg m^2) diverge at any usable timestep"
+            )
         self.motor = motor
         self.servo_kp_scale, self.servo_damping_scale = float(servo_kp_scale), float(servo_damping_scale)
         self.servo_kv, self.armature_scale = float(servo_kv), float(armature_scale)
@@ -246,8 +266,10 @@ class PybulletSim(PhysicsSim):
         text = model_urdf(robot, self.rigid_upper_body)
         self._key = (text, self.self_collision, self.armature_scale)
         # Motor gains per joint (see the module docstring for the mapping).
-        self._gain = {j.name: min(1.0, self.position_gain_scale * j.servo.kp * self.physics_dt / max(j.servo.damping, 1e-6))
-                      for j in robot.joints}
+        self._gain = {
+            j.name: min(1.0, self.position_gain_scale * j.servo.kp * self.physics_dt / max(j.servo.damping, 1e-6))
+            for j in robot.joints
+        }
         self._self_collide = {link.name: any(s.self_collision for s in link.shapes) for link in robot.links}
         fd, self._urdf_path = tempfile.mkstemp(prefix=f"footsim_{robot.name}_", suffix=".urdf")
         with os.fdopen(fd, "w") as f:
@@ -273,12 +295,21 @@ class PybulletSim(PhysicsSim):
         c = self.client
         p.resetSimulation(physicsClientId=c)
         floor_shape = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=c)
-        floor_visual = p.createVisualShape(p.GEOM_BOX, halfExtents=[25, 25, 0.001], visualFramePosition=[0, 0, -0.001],
-                                           rgbaColor=[0.35, 0.55, 0.35, 1], physicsClientId=c)
+        floor_visual = p.createVisualShape(
+            p.GEOM_BOX,
+            halfExtents=[25, 25, 0.001],
+            visualFramePosition=[0, 0, -0.001],
+            rgbaColor=[0.35, 0.55, 0.35, 1],
+            physicsClientId=c,
+        )
         self.floor_id = p.createMultiBody(0, floor_shape, floor_visual, physicsClientId=c)
         p.setCollisionFilterGroupMask(self.floor_id, -1, _STATIC, _ROBOT, physicsClientId=c)
-        flags = (p.URDF_USE_INERTIA_FROM_FILE | p.URDF_USE_SELF_COLLISION
-                 | p.URDF_USE_SELF_COLLISION_EXCLUDE_PARENT | p.URDF_MERGE_FIXED_LINKS)
+        flags = (
+            p.URDF_USE_INERTIA_FROM_FILE
+            | p.URDF_USE_SELF_COLLISION
+            | p.URDF_USE_SELF_COLLISION_EXCLUDE_PARENT
+            | p.URDF_MERGE_FIXED_LINKS
+        )
         with _quiet():
             self.robot_id = p.loadURDF(self._urdf_path, [0, 0, 1], flags=flags, physicsClientId=c)
         self.joint_index: dict[str, int] = {}
@@ -348,15 +379,26 @@ class PybulletSim(PhysicsSim):
         """Settings of this backend's config on a (new or reused) world."""
         c = self.client
         p.setGravity(0, 0, -9.81, physicsClientId=c)
-        p.setPhysicsEngineParameter(fixedTimeStep=self.physics_dt, numSolverIterations=self.solver_iterations,
-                                    numSubSteps=0, deterministicOverlappingPairs=1, physicsClientId=c)
-        p.changeDynamics(self.floor_id, -1, lateralFriction=self.lateral_friction,
-                         spinningFriction=self.spinning_friction, rollingFriction=self.rolling_friction,
-                         physicsClientId=c)
+        p.setPhysicsEngineParameter(
+            fixedTimeStep=self.physics_dt,
+            numSolverIterations=self.solver_iterations,
+            numSubSteps=0,
+            deterministicOverlappingPairs=1,
+            physicsClientId=c,
+        )
+        p.changeDynamics(
+            self.floor_id,
+            -1,
+            lateralFriction=self.lateral_friction,
+            spinningFriction=self.spinning_friction,
+            rollingFriction=self.rolling_friction,
+            physicsClientId=c,
+        )
         for foot in ("l_foot", "r_foot"):
             if foot in self.link_index:
-                p.changeDynamics(self.robot_id, self.link_index[foot], lateralFriction=self.lateral_friction,
-                                 physicsClientId=c)
+                p.changeDynamics(
+                    self.robot_id, self.link_index[foot], lateralFriction=self.lateral_friction, physicsClientId=c
+                )
         # Motor arrays, in a fixed order: legs (LEG_JOINT_NAMES), then the rest.
         self.leg_indices = [self.joint_index[n] for n in LEG_JOINT_NAMES]
         self.leg_forces = [self.spec.joint(n).effort for n in LEG_JOINT_NAMES]
@@ -369,9 +411,14 @@ class PybulletSim(PhysicsSim):
             # 0 with the servo's frictionloss as its force, as MuJoCo's frictionloss); the servo law
             # is applied as a torque every tick (_servo_torques).
             frictionloss = [self.spec.joint(n).servo.frictionloss for n in LEG_JOINT_NAMES]
-            p.setJointMotorControlArray(self.robot_id, self.leg_indices, p.VELOCITY_CONTROL,
-                                        targetVelocities=[0.0] * len(frictionloss), forces=frictionloss,
-                                        physicsClientId=c)
+            p.setJointMotorControlArray(
+                self.robot_id,
+                self.leg_indices,
+                p.VELOCITY_CONTROL,
+                targetVelocities=[0.0] * len(frictionloss),
+                forces=frictionloss,
+                physicsClientId=c,
+            )
             self._servo_gains()
             self._ctrl = [0.0] * len(LEG_JOINT_NAMES)
             self._previous = [0.0] * len(LEG_JOINT_NAMES)
@@ -379,9 +426,15 @@ class PybulletSim(PhysicsSim):
     def _servo_gains(self) -> None:
         """Per leg joint (kp, kv, damping, effort) of the servo law, with the randomization scales."""
         kp_scale = self.servo_kp_scale * self._scales["kp"]
-        self._servo = [(kp_scale * j.servo.kp, self.servo_kv, self.servo_damping_scale * self._scales["damping"] * j.servo.damping,
-                        j.effort * self._scales["torque"])
-                       for j in map(self.spec.joint, LEG_JOINT_NAMES)]
+        self._servo = [
+            (
+                kp_scale * j.servo.kp,
+                self.servo_kv,
+                self.servo_damping_scale * self._scales["damping"] * j.servo.damping,
+                j.effort * self._scales["torque"],
+            )
+            for j in map(self.spec.joint, LEG_JOINT_NAMES)
+        ]
         dt = self.control_dt if self.control_dt is not None else self.physics_dt
         self._feed = [kv / kp / dt for kp, kv, _, _ in self._servo]  # ctrl = q_t + kv/kp · q̇_t
 
@@ -429,8 +482,9 @@ class PybulletSim(PhysicsSim):
             visual = p.createVisualShape(p.GEOM_SPHERE, radius=1.0, rgbaColor=[0, 0, 0, 0], physicsClientId=c)
         else:
             shape = p.createCollisionShape(p.GEOM_CYLINDER, radius=1.0, height=self.obstacle_height, physicsClientId=c)
-            visual = p.createVisualShape(p.GEOM_CYLINDER, radius=1.0, length=self.obstacle_height,
-                                         rgbaColor=[0, 0, 0, 0], physicsClientId=c)
+            visual = p.createVisualShape(
+                p.GEOM_CYLINDER, radius=1.0, length=self.obstacle_height, rgbaColor=[0, 0, 0, 0], physicsClientId=c
+            )
         body = p.createMultiBody(0, shape, visual, [0.0, 0.0, -100.0], physicsClientId=c)
         self._pool_kind[body] = kind
         return body
@@ -445,8 +499,13 @@ class PybulletSim(PhysicsSim):
             if kind == "ball":
                 visual = p.createVisualShape(p.GEOM_SPHERE, radius=radius, rgbaColor=[1, 1, 1, 1], physicsClientId=c)
             else:
-                visual = p.createVisualShape(p.GEOM_CYLINDER, radius=radius, length=self.obstacle_height,
-                                             rgbaColor=[0.8, 0.25, 0.2, 1], physicsClientId=c)
+                visual = p.createVisualShape(
+                    p.GEOM_CYLINDER,
+                    radius=radius,
+                    length=self.obstacle_height,
+                    rgbaColor=[0.8, 0.25, 0.2, 1],
+                    physicsClientId=c,
+                )
             self._stand_ins.append(p.createMultiBody(0, -1, visual, position, physicsClientId=c))
 
     def _remove_stand_ins(self) -> None:
@@ -467,21 +526,28 @@ class PybulletSim(PhysicsSim):
         for link, group, mask in self._filters:
             p.setCollisionFilterGroupMask(body, link, group, mask, physicsClientId=c)
         for name in self.joint_names:
-            p.resetJointState(body, self.joint_index[name], float(joint_positions.get(name, 0.0)), 0.0,
-                              physicsClientId=c)
+            p.resetJointState(
+                body, self.joint_index[name], float(joint_positions.get(name, 0.0)), 0.0, physicsClientId=c
+            )
         if self.motor == "servo":  # target velocities restart from rest at these angles
             self._previous = [float(joint_positions.get(n, 0.0)) for n in LEG_JOINT_NAMES]
             self._ctrl = list(self._previous)
         others = [self.joint_index[n] for n in self.other_names]
         if others:
             p.setJointMotorControlArray(
-                body, others, p.POSITION_CONTROL,
+                body,
+                others,
+                p.POSITION_CONTROL,
                 targetPositions=[float(joint_positions.get(n, 0.0)) for n in self.other_names],
                 forces=[self.spec.joint(n).effort * self._scales["torque"] for n in self.other_names],
                 positionGains=[self._motor_gain(n) for n in self.other_names],
-                velocityGains=[self.velocity_gain] * len(others), physicsClientId=c)
+                velocityGains=[self.velocity_gain] * len(others),
+                physicsClientId=c,
+            )
 
-    def _levelled_base(self, base_position: np.ndarray, joint_positions: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
+    def _levelled_base(
+        self, base_position: np.ndarray, joint_positions: dict[str, float]
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Base position and rotation with the soles flat on the floor, as MuJoCo and dm-control
         start: the walk's standing pose pitches the trunk (``trunk_pitch``), so an upright base
         would put the robot on its heels, where Bullet's rolling friction holds it (measured: one
@@ -501,10 +567,16 @@ class PybulletSim(PhysicsSim):
             self._ctrl = [t + f * (t - old) for t, old, f in zip(new, self._previous, self._feed)]
             self._previous = new
             return
-        p.setJointMotorControlArray(self.robot_id, self.leg_indices, p.POSITION_CONTROL,
-                                    targetPositions=targets.tolist(), forces=self.leg_forces,
-                                    positionGains=self.leg_gains, velocityGains=self.leg_vgains,
-                                    physicsClientId=self.client)
+        p.setJointMotorControlArray(
+            self.robot_id,
+            self.leg_indices,
+            p.POSITION_CONTROL,
+            targetPositions=targets.tolist(),
+            forces=self.leg_forces,
+            positionGains=self.leg_gains,
+            velocityGains=self.leg_vgains,
+            physicsClientId=self.client,
+        )
 
     def stabilized_ticks(self, targets: np.ndarray, trunk: np.ndarray, gains: np.ndarray, substeps: int):
         """Stabilized control ticks in one Python loop: per tick a quaternion read, one compiled
@@ -514,8 +586,12 @@ class PybulletSim(PhysicsSim):
         caches cold.  Position motors only (servo mode: the verbs)."""
         if self.motor != "position":
             return None
-        read, command, mode, step = p.getBasePositionAndOrientation, p.setJointMotorControlArray, \
-            p.POSITION_CONTROL, p.stepSimulation
+        read, command, mode, step = (
+            p.getBasePositionAndOrientation,
+            p.setJointMotorControlArray,
+            p.POSITION_CONTROL,
+            p.stepSimulation,
+        )
         body, c, legs = self.robot_id, self.client, self.leg_indices
         forces, position_gains, velocity_gains = self.leg_forces, self.leg_gains, self.leg_vgains
         state = bullet_control_state(targets, trunk, gains, np.array(self._com_rows))
@@ -525,12 +601,21 @@ class PybulletSim(PhysicsSim):
 
         def run(k0: int, k1: int) -> None:
             for k in range(k0, k1):
-                command(body, legs, mode, targetPositions=control_tick(state, k, read(body, c)[1]), forces=forces,
-                        positionGains=position_gains, velocityGains=velocity_gains, physicsClientId=c)
+                command(
+                    body,
+                    legs,
+                    mode,
+                    targetPositions=control_tick(state, k, read(body, c)[1]),
+                    forces=forces,
+                    positionGains=position_gains,
+                    velocityGains=velocity_gains,
+                    physicsClientId=c,
+                )
                 for _ in physics_steps:
                     if wrench is not None:
                         wrench()
                     step(c)
+
         return run
 
     def _servo_torques(self) -> list[float]:
@@ -549,7 +634,9 @@ class PybulletSim(PhysicsSim):
             for _ in range(n_steps):
                 if self._wrench:
                     self._apply_wrench()
-                p.setJointMotorControlArray(body, legs, p.TORQUE_CONTROL, forces=self._servo_torques(), physicsClientId=c)
+                p.setJointMotorControlArray(
+                    body, legs, p.TORQUE_CONTROL, forces=self._servo_torques(), physicsClientId=c
+                )
                 p.stepSimulation(physicsClientId=c)
             return
         if self._wrench:
@@ -602,16 +689,25 @@ class PybulletSim(PhysicsSim):
 
         mass = scale("link_mass_scale")
         for link, (m, inertia) in self._nominal_dynamics.items():
-            p.changeDynamics(body, link, mass=m * mass, localInertiaDiagonal=[v * mass for v in inertia],
-                             physicsClientId=c)
-        p.changeDynamics(self.floor_id, -1, lateralFriction=self.lateral_friction * scale("floor_friction"),
-                         physicsClientId=c)
+            p.changeDynamics(
+                body, link, mass=m * mass, localInertiaDiagonal=[v * mass for v in inertia], physicsClientId=c
+            )
+        p.changeDynamics(
+            self.floor_id, -1, lateralFriction=self.lateral_friction * scale("floor_friction"), physicsClientId=c
+        )
         for foot in ("l_foot", "r_foot"):
             if foot in self.link_index:
-                p.changeDynamics(body, self.link_index[foot],
-                                 lateralFriction=self.lateral_friction * scale("foot_friction"), physicsClientId=c)
-        self._scales = {"kp": scale("actuator_kp_scale"), "damping": scale("joint_damping_scale"),
-                        "torque": scale("torque_limit_scale")}
+                p.changeDynamics(
+                    body,
+                    self.link_index[foot],
+                    lateralFriction=self.lateral_friction * scale("foot_friction"),
+                    physicsClientId=c,
+                )
+        self._scales = {
+            "kp": scale("actuator_kp_scale"),
+            "damping": scale("joint_damping_scale"),
+            "torque": scale("torque_limit_scale"),
+        }
         self.leg_gains = [self._motor_gain(n) for n in LEG_JOINT_NAMES]
         self.leg_forces = [self.spec.joint(n).effort * self._scales["torque"] for n in LEG_JOINT_NAMES]
         if self.motor == "servo":
@@ -623,8 +719,9 @@ class PybulletSim(PhysicsSim):
         direction = float(values.get("terrain_slope_direction", 0.0))
         axis = (-math.sin(direction), math.cos(direction), 0.0)  # the plane descends toward the direction
         half = 0.5 * slope
-        p.resetBasePositionAndOrientation(self.floor_id, [0, 0, 0], [*(math.sin(half) * a for a in axis), math.cos(half)],
-                                          physicsClientId=c)
+        p.resetBasePositionAndOrientation(
+            self.floor_id, [0, 0, 0], [*(math.sin(half) * a for a in axis), math.cos(half)], physicsClientId=c
+        )
         self._randomized = bool(values)
         self._wrench = bool(self._base_force.any() or self._com_offset.any())
 
@@ -659,8 +756,9 @@ class PybulletSim(PhysicsSim):
         return math.asin(max(-1.0, min(1.0, s_roll))), math.asin(max(-1.0, min(1.0, s_pitch)))
 
     def joint_positions(self) -> dict[str, float]:
-        states = p.getJointStates(self.robot_id, [self.joint_index[n] for n in self.joint_names],
-                                  physicsClientId=self.client)
+        states = p.getJointStates(
+            self.robot_id, [self.joint_index[n] for n in self.joint_names], physicsClientId=self.client
+        )
         return {n: s[0] for n, s in zip(self.joint_names, states)}
 
     # -- events ---------------------------------------------------------------------------
@@ -668,7 +766,9 @@ class PybulletSim(PhysicsSim):
         # Bullet also lists points a few mm apart (positive contactDistance, index 8); count only
         # touching or penetrating ones, as MuJoCo's contacts (geom margin 0) do.
         c, body = self.client, self.robot_id
-        return any(point[8] <= 0.0 for ob in self.obstacle_ids for point in p.getContactPoints(body, ob, physicsClientId=c))
+        return any(
+            point[8] <= 0.0 for ob in self.obstacle_ids for point in p.getContactPoints(body, ob, physicsClientId=c)
+        )
 
     def sim_error(self) -> str | None:
         pos, orn = p.getBasePositionAndOrientation(self.robot_id, physicsClientId=self.client)
@@ -686,8 +786,17 @@ class PybulletSim(PhysicsSim):
         c, body = self.client, self.robot_id
         position, orientation = p.getBasePositionAndOrientation(body, c)
         linear, angular = p.getBaseVelocity(body, c)
-        return _compiled_per_tick()[1](position, orientation, linear, angular, self._com_pos, self._com_rot,
-                                       float(out_of_bounds), self.max_base_speed, tilt)
+        return _compiled_per_tick()[1](
+            position,
+            orientation,
+            linear,
+            angular,
+            self._com_pos,
+            self._com_rot,
+            float(out_of_bounds),
+            self.max_base_speed,
+            tilt,
+        )
 
     def _healthy(self) -> bool:
         """No sim error and the base within 50 m of the origin (else the world is rebuilt)."""
@@ -702,34 +811,57 @@ class PybulletSim(PhysicsSim):
         self._draw_stand_ins()
         if overlay is not None:
             if self._goal_marker < 0:
-                disc = p.createVisualShape(p.GEOM_CYLINDER, radius=0.12, length=0.01, rgbaColor=[1.0, 0.85, 0.0, 1],
-                                           physicsClientId=c)
+                disc = p.createVisualShape(
+                    p.GEOM_CYLINDER, radius=0.12, length=0.01, rgbaColor=[1.0, 0.85, 0.0, 1], physicsClientId=c
+                )
                 self._goal_marker = p.createMultiBody(0, -1, disc, [0, 0, 0.005], physicsClientId=c)
-                arrow = p.createVisualShape(p.GEOM_BOX, halfExtents=[0.12, 0.02, 0.006],
-                                            rgbaColor=[0.9, 0.4, 0.0, 1], physicsClientId=c)
+                arrow = p.createVisualShape(
+                    p.GEOM_BOX, halfExtents=[0.12, 0.02, 0.006], rgbaColor=[0.9, 0.4, 0.0, 1], physicsClientId=c
+                )
                 self._goal_arrow = p.createMultiBody(0, -1, arrow, [0, 0, 0.012], physicsClientId=c)
             g = overlay.goal
             orn = p.getQuaternionFromEuler([0, 0, g.theta])
             p.resetBasePositionAndOrientation(self._goal_marker, [g.x, g.y, 0.005], orn, physicsClientId=c)
-            p.resetBasePositionAndOrientation(self._goal_arrow, [g.x + 0.1 * math.cos(g.theta),
-                                                                 g.y + 0.1 * math.sin(g.theta), 0.012], orn,
-                                              physicsClientId=c)
+            p.resetBasePositionAndOrientation(
+                self._goal_arrow,
+                [g.x + 0.1 * math.cos(g.theta), g.y + 0.1 * math.sin(g.theta), 0.012],
+                orn,
+                physicsClientId=c,
+            )
         position, rotation = self.base_pose()
         target = [float(position[0]), float(position[1]), 0.25]
         if overlay is not None:  # frame the robot and the goal
             target = [0.5 * (target[0] + overlay.goal.x), 0.5 * (target[1] + overlay.goal.y), 0.25]
         spread = 0.0 if overlay is None else math.hypot(overlay.goal.x - position[0], overlay.goal.y - position[1])
         yaw = math.degrees(math.atan2(rotation[1, 0], rotation[0, 0])) - 90.0
-        view = p.computeViewMatrixFromYawPitchRoll(target, self.camera_distance + 0.8 * spread, yaw,
-                                                   self.camera_pitch, 0, 2, physicsClientId=c)
+        view = p.computeViewMatrixFromYawPitchRoll(
+            target, self.camera_distance + 0.8 * spread, yaw, self.camera_pitch, 0, 2, physicsClientId=c
+        )
         proj = p.computeProjectionMatrixFOV(60, width / height, 0.05, 50.0, physicsClientId=c)
-        _, _, rgba, _, _ = p.getCameraImage(width, height, view, proj, renderer=p.ER_TINY_RENDERER,
-                                            flags=p.ER_NO_SEGMENTATION_MASK, physicsClientId=c)
+        _, _, rgba, _, _ = p.getCameraImage(
+            width, height, view, proj, renderer=p.ER_TINY_RENDERER, flags=p.ER_NO_SEGMENTATION_MASK, physicsClientId=c
+        )
         return np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[:, :, :3].copy()
 
-    _WORLD_ATTRS = ("client", "floor_id", "robot_id", "joint_index", "link_index", "joint_names", "_filters",
-                    "_com_pos", "_com_orn", "_com_rot", "_com_rows", "obstacle_ids", "_free", "_pool_kind", "_goal_marker",
-                    "_goal_arrow", "_nominal_dynamics")
+    _WORLD_ATTRS = (
+        "client",
+        "floor_id",
+        "robot_id",
+        "joint_index",
+        "link_index",
+        "joint_names",
+        "_filters",
+        "_com_pos",
+        "_com_orn",
+        "_com_rot",
+        "_com_rows",
+        "obstacle_ids",
+        "_free",
+        "_pool_kind",
+        "_goal_marker",
+        "_goal_arrow",
+        "_nominal_dynamics",
+    )
 
     def close(self) -> None:
         """Park the world for reuse (see ``_IDLE_WORLDS``) or disconnect; remove the URDF file."""

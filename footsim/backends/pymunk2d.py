@@ -41,8 +41,7 @@ def _box(body: pymunk.Body, length: float, width: float) -> pymunk.Poly:
     return pymunk.Poly(body, [(-hl, -hw), (hl, -hw), (hl, hw), (-hl, hw)])
 
 
-def box_hits_circles(x: float, y: float, theta: float, half_length: float, half_width: float,
-                     circles) -> bool:
+def box_hits_circles(x: float, y: float, theta: float, half_length: float, half_width: float, circles) -> bool:
     """Does the rectangle ``2·half_length × 2·half_width`` centred at ``(x, y)``, turned by
     ``theta``, overlap (or touch) any circle ``(cx, cy, r)`` of ``circles``?
 
@@ -51,14 +50,23 @@ def box_hits_circles(x: float, y: float, theta: float, half_length: float, half_
     The compiled :func:`footsim.kernels2d.box_hits_circles` on any sequence of ``(x, y, r)``
     (the backend calls the kernels directly, with the episode's circles as an array).
     """
-    return kernels2d.box_hits_circles(float(x), float(y), float(theta), float(half_length), float(half_width),
-                                      kernels2d.circle_array(circles))
+    return kernels2d.box_hits_circles(
+        float(x), float(y), float(theta), float(half_length), float(half_width), kernels2d.circle_array(circles)
+    )
 
 
 # ``execute`` builds StepResult positionally (a hot path): make sure the field order is the one used.
 # Fields after ``info`` (the 3D tilt) keep their defaults here.
 assert [f.name for f in fields(StepResult)][:8] == [
-    "pose", "duration_s", "feet", "executed", "fell", "collided", "sim_error", "info"], "StepResult fields changed"
+    "pose",
+    "duration_s",
+    "feet",
+    "executed",
+    "fell",
+    "collided",
+    "sim_error",
+    "info",
+], "StepResult fields changed"
 
 
 class Pymunk2DBackend(Backend):
@@ -72,14 +80,24 @@ class Pymunk2DBackend(Backend):
 
     COLLISION_MODELS = ("footprint", "nav_distance")
 
-    def __init__(self, robot: RobotSpec, walk: WalkParams, collision_ends_episode: bool = True,
-                 execution_model: str | None = None, execution_noise: bool = True, execution_falls: bool = False,
-                 collision_model: str = "footprint", collision_distance: float = 0.1, **unused):
+    def __init__(
+        self,
+        robot: RobotSpec,
+        walk: WalkParams,
+        collision_ends_episode: bool = True,
+        execution_model: str | None = None,
+        execution_noise: bool = True,
+        execution_falls: bool = False,
+        collision_model: str = "footprint",
+        collision_distance: float = 0.1,
+        **unused,
+    ):
         if unused:
             raise ValueError(f"backend pymunk: unknown option(s) {sorted(unused)}")
         if collision_model not in self.COLLISION_MODELS:
-            raise ValueError(f"backend.collision_model must be one of {list(self.COLLISION_MODELS)}, "
-                             f"got {collision_model!r}")
+            raise ValueError(
+                f"backend.collision_model must be one of {list(self.COLLISION_MODELS)}, got {collision_model!r}"
+            )
         collision_distance = float(collision_distance)
         if not collision_distance >= 0.0:
             raise ValueError(f"backend.collision_distance must be >= 0, got {collision_distance!r}")
@@ -94,9 +112,7 @@ class Pymunk2DBackend(Backend):
         self.robot = robot
         self.walk = walk
         self.collision_ends_episode = bool(collision_ends_episode)
-        self.geometry = FootstepGeometry(
-            robot.step_limits, robot.foot_length, robot.foot_width, walk.foot_distance
-        )
+        self.geometry = FootstepGeometry(robot.step_limits, robot.foot_length, robot.foot_width, walk.foot_distance)
         foot_half = (0.5 * robot.foot_length, 0.5 * robot.foot_width)
         trunk_half = tuple(0.5 * v for v in robot.torso_footprint)
         # Broad phase: a shape centred farther than its circumradius (+ a rounding margin) from
@@ -172,13 +188,29 @@ class Pymunk2DBackend(Backend):
             # the common case in one compiled call: placement, collision test and navigation pose
             (first, second), (left, right) = double_step, before
             values = kernels2d.execute_double_step(
-                right[0], right[1], right[2], left[0], left[1], left[2], first[0], first[1], first[2],
-                second[0], second[1], second[2], self.geometry.kernel_params, self._circles, self._dims)
+                right[0],
+                right[1],
+                right[2],
+                left[0],
+                left[1],
+                left[2],
+                first[0],
+                first[1],
+                first[2],
+                second[0],
+                second[1],
+                second[2],
+                self.geometry.kernel_params,
+                self._circles,
+                self._dims,
+            )
             after_first, after_second, executed, n_interfered = placed_double_step(left, values)
-            return self._result(after_first, after_second, executed, n_interfered, False, values[14],
-                                _new(Pose2D, values[15:]))
+            return self._result(
+                after_first, after_second, executed, n_interfered, False, values[14], _new(Pose2D, values[15:])
+            )
         after_first, after_second, executed, n_interfered = self.geometry.execute(
-            before, double_step, self._perturb if perturbed else None)
+            before, double_step, self._perturb if perturbed else None
+        )
         if not self.scene.circles:
             collided = False
         elif self.collision_model == "footprint":
@@ -187,21 +219,40 @@ class Pymunk2DBackend(Backend):
             collided = self._nav_too_close(after_first.nav_pose) or self._nav_too_close(after_second.nav_pose)
         fell = False
         if self.execution_model is not None:
-            after_first, after_second, fell = self._apply_execution_model(before, after_first, after_second, double_step)
-        return self._result(after_first, after_second, executed, n_interfered, fell, collided,
-                            mean_pose(after_second[0], after_second[1]))
+            after_first, after_second, fell = self._apply_execution_model(
+                before, after_first, after_second, double_step
+            )
+        return self._result(
+            after_first,
+            after_second,
+            executed,
+            n_interfered,
+            fell,
+            collided,
+            mean_pose(after_second[0], after_second[1]),
+        )
 
-    def _result(self, after_first: FeetState, after_second: FeetState, executed: DoubleStep, n_interfered: int,
-                fell: bool, collided: bool, nav: Pose2D) -> StepResult:
+    def _result(
+        self,
+        after_first: FeetState,
+        after_second: FeetState,
+        executed: DoubleStep,
+        n_interfered: int,
+        fell: bool,
+        collided: bool,
+        nav: Pose2D,
+    ) -> StepResult:
         self.feet = after_second
         self.history += [(Side.RIGHT, after_first[1]), (Side.LEFT, after_second[0])]
         self.nav_history.append(nav)
         # positional (checked against StepResult's fields at import): keywords cost a µs here
-        return StepResult(nav, self._duration, after_second, executed, fell, collided, None,
-                          {"foot_interference": n_interfered})
+        return StepResult(
+            nav, self._duration, after_second, executed, fell, collided, None, {"foot_interference": n_interfered}
+        )
 
-    def _apply_execution_model(self, before: FeetState, after_first: FeetState, after_second: FeetState,
-                               double_step: DoubleStep) -> tuple[FeetState, FeetState, bool]:
+    def _apply_execution_model(
+        self, before: FeetState, after_first: FeetState, after_second: FeetState, double_step: DoubleStep
+    ) -> tuple[FeetState, FeetState, bool]:
         """Move the feet so the navigation frame makes the model's displacement instead of the
         geometry's: both feet shift rigidly with the navigation frame (half the correction at the
         half step); the residual noise and the fall draw come from the episode rng."""

@@ -15,17 +15,25 @@ import numpy as np
 
 def _row(name: str, times_s, extra: dict | None = None) -> dict:
     t = np.asarray(times_s, dtype=float) * 1e3
-    row = {"planner": name, "plans": int(t.size),
-           "median ms": float(np.median(t)) if t.size else math.nan,
-           "p95 ms": float(np.percentile(t, 95)) if t.size else math.nan,
-           "max ms": float(t.max()) if t.size else math.nan,
-           "complete plan within budget": math.nan}
+    row = {
+        "planner": name,
+        "plans": int(t.size),
+        "median ms": float(np.median(t)) if t.size else math.nan,
+        "p95 ms": float(np.percentile(t, 95)) if t.size else math.nan,
+        "max ms": float(t.max()) if t.size else math.nan,
+        "complete plan within budget": math.nan,
+    }
     row.update(extra or {})
     return row
 
 
-def bench_planners(n_scenes: int = 50, seed: int = 20220102, backend: str = "pymunk",
-                   velocity: dict | None = None, footstep: dict | None = None) -> list[dict]:
+def bench_planners(
+    n_scenes: int = 50,
+    seed: int = 20220102,
+    backend: str = "pymunk",
+    velocity: dict | None = None,
+    footstep: dict | None = None,
+) -> list[dict]:
     from footsim.env import FootstepEnv
     from footsim.planners import make_controller
     from footsim.tasks.scenes import sample_scenes

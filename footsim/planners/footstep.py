@@ -79,7 +79,7 @@ class FootstepParams:
             raise ValueError("controller.lattice_xy and resolution must be > 0, lattice_theta_bins >= 4")
 
     @classmethod
-    def from_mapping(cls, mapping) -> "FootstepParams":
+    def from_mapping(cls, mapping) -> FootstepParams:
         data = {k: v for k, v in dict(mapping).items() if k != "name"}
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(data) - known)
@@ -143,8 +143,14 @@ class _Rects:
 class FootstepPlanner:
     """Plans footsteps on one scene (the map and goal are fixed; starts change per replan)."""
 
-    def __init__(self, geometry: FootstepGeometry, trunk_footprint: tuple[float, float], scene: Scene,
-                 params: FootstepParams = FootstepParams(), start_xy: tuple[float, float] = (0.0, 0.0)):
+    def __init__(
+        self,
+        geometry: FootstepGeometry,
+        trunk_footprint: tuple[float, float],
+        scene: Scene,
+        params: FootstepParams = FootstepParams(),
+        start_xy: tuple[float, float] = (0.0, 0.0),
+    ):
         self.geometry = geometry
         self.params = p = params
         self.scene = scene
@@ -174,32 +180,42 @@ class FootstepPlanner:
                         seen.add(key)
                         steps.append(done)
                         rels.append(rel)
-                        costs.append(p.step_cost + p.turn_cost * abs(done.theta)
-                                     + p.backward_cost * max(-done.x, 0.0) / lim.x
-                                     + p.lateral_cost * abs(done.y) / lim.y)
+                        costs.append(
+                            p.step_cost
+                            + p.turn_cost * abs(done.theta)
+                            + p.backward_cost * max(-done.x, 0.0) / lim.x
+                            + p.lateral_cost * abs(done.y) / lim.y
+                        )
             k = len(steps)
             half_l = np.concatenate([np.full(2 * k, self.foot_half[0]), np.full(k, self.trunk_half[0])])
             half_w = np.concatenate([np.full(2 * k, self.foot_half[1]), np.full(k, self.trunk_half[1])])
             self.transitions[side] = (steps, np.array(rels, dtype=float), np.array(costs, dtype=float), half_l, half_w)
         # Heuristic map.
         g = self.goal
-        self.costmap = Costmap.from_obstacles(obstacles, [start_xy, (g.x, g.y)], p.resolution,
-                                              p.heuristic_clearance, margin=1.0)
+        self.costmap = Costmap.from_obstacles(
+            obstacles, [start_xy, (g.x, g.y)], p.resolution, p.heuristic_clearance, margin=1.0
+        )
         self.dist = distance_to_goal_map(self.costmap, (g.x, g.y))
         self.direction = _downhill_direction(self.dist, self.costmap.resolution)
         self.turn_from_direction = np.abs(_wrap(g.theta - self.direction))
         # The feet standing at the goal.
         self.goal_feet = geometry.initial_feet(g)
-        self.goal_status = "ok" if not self._stance_collides(self.goal_feet.left, self.goal_feet.right, exact=True) \
+        self.goal_status = (
+            "ok"
+            if not self._stance_collides(self.goal_feet.left, self.goal_feet.right, exact=True)
             else "goal_in_collision"
+        )
         # The last double step may come as close to obstacles as the goal stance itself does
         # (the ball lies 0.125 m ahead of the goal): its margin is capped by the stance's clearance.
         lo, hi = 0.0, p.safety_margin
         if self.goal_status == "ok" and self._stance_collides(self.goal_feet.left, self.goal_feet.right):
             for _ in range(12):
                 self.rects = _Rects(obstacles, 0.5 * (lo + hi))
-                lo, hi = (lo, 0.5 * (lo + hi)) if self._stance_collides(self.goal_feet.left, self.goal_feet.right) \
+                lo, hi = (
+                    (lo, 0.5 * (lo + hi))
+                    if self._stance_collides(self.goal_feet.left, self.goal_feet.right)
                     else (0.5 * (lo + hi), hi)
+                )
             self.rects = _Rects(obstacles, p.safety_margin)
         self.rects_goal = _Rects(obstacles, lo if lo < p.safety_margin else p.safety_margin)
 
@@ -262,13 +278,18 @@ class FootstepPlanner:
         if rects.hits(xs, ys, ts, hl, hw).any():
             return None
         p = self.params
-        cost = 2 * p.step_cost + p.turn_cost * abs(done.theta) + p.backward_cost * max(-done.x, 0) / lim.x \
+        cost = (
+            2 * p.step_cost
+            + p.turn_cost * abs(done.theta)
+            + p.backward_cost * max(-done.x, 0) / lim.x
             + p.lateral_cost * abs(done.y) / lim.y
+        )
         return [(Side.RIGHT, done, right), (Side.LEFT, Footstep(), left)], cost
 
     # -- search --------------------------------------------------------------------------------
-    def plan(self, left: Pose2D, right: Pose2D, budget_s: float | None = None,
-             previous: FootstepPlan | None = None) -> FootstepPlan:
+    def plan(
+        self, left: Pose2D, right: Pose2D, budget_s: float | None = None, previous: FootstepPlan | None = None
+    ) -> FootstepPlan:
         """Plan from the feet (left foot supporting, right foot flies first).
 
         ``previous``: the plan being executed; its remaining footsteps (after the double step
@@ -293,7 +314,7 @@ class FootstepPlanner:
         exhausted = False
         rect_sets = [self.rects, self.rects_exact] if self.params.safety_margin > 0 else [self.rects]
         for rects in rect_sets:  # when the margin leaves no way out (e.g. the robot already stands
-            exhausted = False    # closer than the margin), search again without it
+            exhausted = False  # closer than the margin), search again without it
             self._active_rects = rects
             for eps in self.params.epsilons:
                 result = self._weighted_astar(left, right, eps, best.cost if best else math.inf, deadline)
@@ -339,15 +360,24 @@ class FootstepPlanner:
             landed = support.compose(rel)
             mid, nav = mean_pose(feet[side], landed), mean_pose(support, landed)
             xs, ys, ts = [landed.x, mid.x, nav.x], [landed.y, mid.y, nav.y], [landed.theta, mid.theta, nav.theta]
-            if self.rects.hits(xs, ys, ts, [self.foot_half[0]] * 2 + [self.trunk_half[0]],
-                               [self.foot_half[1]] * 2 + [self.trunk_half[1]]).any():
+            if self.rects.hits(
+                xs,
+                ys,
+                ts,
+                [self.foot_half[0]] * 2 + [self.trunk_half[0]],
+                [self.foot_half[1]] * 2 + [self.trunk_half[1]],
+            ).any():
                 return None
             feet[side] = landed
             steps.append((side, done))
             poses.append((side, landed))
             p = self.params
-            cost += (p.step_cost + p.turn_cost * abs(done.theta) + p.backward_cost * max(-done.x, 0.0) / self.limits.x
-                     + p.lateral_cost * abs(done.y) / self.limits.y)
+            cost += (
+                p.step_cost
+                + p.turn_cost * abs(done.theta)
+                + p.backward_cost * max(-done.x, 0.0) / self.limits.x
+                + p.lateral_cost * abs(done.y) / self.limits.y
+            )
         shot = self._goal_shot(feet[Side.LEFT], feet[Side.RIGHT])
         if shot is None:
             return None
@@ -377,8 +407,9 @@ class FootstepPlanner:
                 break
             f, g, n = heapq.heappop(open_heap)
             x, y, t, side, _, _, other = nodes[n]
-            key = ((int(round(x * inv_res)) * 8192 + int(round(y * inv_res))) * nbins
-                   + int(round(t * inv_bin)) % nbins) * 2 + side_bit[side]
+            key = (
+                (int(round(x * inv_res)) * 8192 + int(round(y * inv_res))) * nbins + int(round(t * inv_bin)) % nbins
+            ) * 2 + side_bit[side]
             if key in closed:
                 continue
             closed.add(key)
@@ -403,18 +434,31 @@ class FootstepPlanner:
             nav_t = t + 0.5 * rels[:, 2]
             mid_t = other.theta + 0.5 * _wrap(lt - other.theta)
             k = len(lx)
-            hits = self._active_rects.hits(
-                np.concatenate([lx, 0.5 * (other.x + lx), nav_x]), np.concatenate([ly, 0.5 * (other.y + ly), nav_y]),
-                np.concatenate([lt, mid_t, nav_t]), hl, hw,
-            ).reshape(3, k).any(axis=0)
+            hits = (
+                self._active_rects.hits(
+                    np.concatenate([lx, 0.5 * (other.x + lx), nav_x]),
+                    np.concatenate([ly, 0.5 * (other.y + ly), nav_y]),
+                    np.concatenate([lt, mid_t, nav_t]),
+                    hl,
+                    hw,
+                )
+                .reshape(3, k)
+                .any(axis=0)
+            )
             h = self._heuristic(nav_x, nav_y, nav_t)
             gs = g + costs
             ok = np.flatnonzero(~hits & np.isfinite(h) & (gs + h < bound))
             if ok.size == 0:
                 continue
             lt = _wrap(lt)
-            keys = (((np.rint(lx * inv_res).astype(np.int64) * 8192 + np.rint(ly * inv_res).astype(np.int64)) * nbins
-                     + np.rint(lt * inv_bin).astype(np.int64) % nbins) * 2 + side_bit[flying])[ok].tolist()
+            keys = (
+                (
+                    (np.rint(lx * inv_res).astype(np.int64) * 8192 + np.rint(ly * inv_res).astype(np.int64)) * nbins
+                    + np.rint(lt * inv_bin).astype(np.int64) % nbins
+                )
+                * 2
+                + side_bit[flying]
+            )[ok].tolist()
             gl, hl_, fl = gs[ok].tolist(), h[ok].tolist(), (gs + eps * h)[ok].tolist()
             xl, yl, tl = lx[ok].tolist(), ly[ok].tolist(), lt[ok].tolist()
             for q, idx in enumerate(ok.tolist()):
@@ -430,8 +474,11 @@ class FootstepPlanner:
         result = {"plan": plan, "expanded": expanded, "timed_out": timed_out, "partial": None}
         if plan is None and partial[1] != 0:
             chain = self._chain(partial[1], nodes)
-            result["partial"] = (partial[0], [(nodes[i][3], nodes[i][5]) for i in chain],
-                                 [(nodes[i][3], Pose2D(*nodes[i][:3])) for i in chain])
+            result["partial"] = (
+                partial[0],
+                [(nodes[i][3], nodes[i][5]) for i in chain],
+                [(nodes[i][3], Pose2D(*nodes[i][:3])) for i in chain],
+            )
         return result
 
     @staticmethod
@@ -464,7 +511,7 @@ def _downhill_direction(dist: np.ndarray, resolution: float) -> np.ndarray:
         for dj in (-1, 0, 1):
             if di == 0 and dj == 0:
                 continue
-            neighbour = padded[1 + di:1 + di + nx, 1 + dj:1 + dj + ny] + resolution * math.hypot(di, dj)
+            neighbour = padded[1 + di : 1 + di + nx, 1 + dj : 1 + dj + ny] + resolution * math.hypot(di, dj)
             better = neighbour < best
             best = np.where(better, neighbour, best)
             direction = np.where(better, math.atan2(dj, di), direction)
@@ -499,8 +546,12 @@ class FootstepController:
 
     kind = "footstep"
 
-    def __init__(self, geometry: FootstepGeometry, trunk_footprint: tuple[float, float],
-                 params: FootstepParams = FootstepParams()):
+    def __init__(
+        self,
+        geometry: FootstepGeometry,
+        trunk_footprint: tuple[float, float],
+        params: FootstepParams = FootstepParams(),
+    ):
         self.geometry = geometry
         self.trunk_footprint = tuple(trunk_footprint)
         self.params = params
@@ -509,7 +560,7 @@ class FootstepController:
         self._reset_state()
 
     @classmethod
-    def from_env(cls, env, params: FootstepParams | dict | None = None) -> "FootstepController":
+    def from_env(cls, env, params: FootstepParams | dict | None = None) -> FootstepController:
         if params is None:
             params = FootstepParams()
         elif not isinstance(params, FootstepParams):
@@ -550,5 +601,9 @@ class FootstepController:
     def episode_info(self) -> dict:
         times = np.array(self.plan_times) * 1e3
         failed = sum(n for k, n in self.statuses.items() if k in ("unreachable", "goal_in_collision"))
-        return {"planner_status": self.failure_reason or self.status, "failed_plans": failed, "plans": len(times),
-                "plan_ms_median": float(np.median(times)) if len(times) else math.nan}
+        return {
+            "planner_status": self.failure_reason or self.status,
+            "failed_plans": failed,
+            "plans": len(times),
+            "plan_ms_median": float(np.median(times)) if len(times) else math.nan,
+        }

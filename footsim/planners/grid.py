@@ -23,8 +23,16 @@ from scipy import ndimage
 from footsim.tasks.scenes import Obstacle
 
 SQRT2 = math.sqrt(2.0)
-_NEIGHBOURS = ((1, 0, 1.0), (-1, 0, 1.0), (0, 1, 1.0), (0, -1, 1.0),
-               (1, 1, SQRT2), (1, -1, SQRT2), (-1, 1, SQRT2), (-1, -1, SQRT2))
+_NEIGHBOURS = (
+    (1, 0, 1.0),
+    (-1, 0, 1.0),
+    (0, 1, 1.0),
+    (0, -1, 1.0),
+    (1, 1, SQRT2),
+    (1, -1, SQRT2),
+    (-1, 1, SQRT2),
+    (-1, -1, SQRT2),
+)
 
 
 @dataclass
@@ -47,8 +55,14 @@ class Costmap:
         self._flat = None
 
     @classmethod
-    def from_obstacles(cls, obstacles: tuple[Obstacle, ...], points: list[tuple[float, float]],
-                       resolution: float = 0.05, inflated_radius: float = 0.2, margin: float = 1.0) -> "Costmap":
+    def from_obstacles(
+        cls,
+        obstacles: tuple[Obstacle, ...],
+        points: list[tuple[float, float]],
+        resolution: float = 0.05,
+        inflated_radius: float = 0.2,
+        margin: float = 1.0,
+    ) -> Costmap:
         """Grid covering ``points`` (start, goal, …) and the obstacles, plus ``margin`` metres.
 
         The circles are rasterised (cells whose centre lies inside) and the clearance is the
@@ -69,14 +83,17 @@ class Costmap:
         occupied = np.zeros((nx, ny), dtype=bool)
         for o in obstacles:
             occupied |= (gx[:, None] - o.x) ** 2 + (gy[None, :] - o.y) ** 2 <= o.r * o.r
-            occupied[min(max(int(round((o.x - x0) / resolution)), 0), nx - 1),
-                     min(max(int(round((o.y - y0) / resolution)), 0), ny - 1)] = True  # thin ones too
+            occupied[
+                min(max(int(round((o.x - x0) / resolution)), 0), nx - 1),
+                min(max(int(round((o.y - y0) / resolution)), 0), ny - 1),
+            ] = True  # thin ones too
         costmap = cls.from_mask(occupied, (x0, y0), resolution, inflated_radius)
         return costmap
 
     @classmethod
-    def from_mask(cls, occupied: np.ndarray, origin: tuple[float, float], resolution: float,
-                  inflated_radius: float) -> "Costmap":
+    def from_mask(
+        cls, occupied: np.ndarray, origin: tuple[float, float], resolution: float, inflated_radius: float
+    ) -> Costmap:
         """From an occupancy mask (True = obstacle): clearance by ``distance_transform_edt``."""
         occupied = np.asarray(occupied, dtype=bool)
         clearance = np.maximum(ndimage.distance_transform_edt(~occupied) * resolution - 0.5 * resolution, 0.0)
@@ -172,8 +189,13 @@ def _euclid(a, b) -> float:
     return math.hypot(a[0] - b[0], a[1] - b[1])
 
 
-def grid_search(costmap: Costmap, start: tuple[int, int], goal: tuple[int, int], algorithm: str = "theta_star",
-                max_expansions: int = 200_000) -> tuple[list[tuple[int, int]] | None, int]:
+def grid_search(
+    costmap: Costmap,
+    start: tuple[int, int],
+    goal: tuple[int, int],
+    algorithm: str = "theta_star",
+    max_expansions: int = 200_000,
+) -> tuple[list[tuple[int, int]] | None, int]:
     """A* (``astar``), Theta* (``theta_star``) or Lazy Theta* (``lazy_theta_star``) between free cells.
 
     Returns ``(cells from start to goal or None, expansions)``.  Costs in cells; Theta* variants
@@ -240,8 +262,9 @@ def grid_search(costmap: Costmap, start: tuple[int, int], goal: tuple[int, int],
     return cells, expanded
 
 
-def plan_path(costmap: Costmap, start_xy: tuple[float, float], goal_xy: tuple[float, float],
-              algorithm: str = "theta_star") -> GridPath | None:
+def plan_path(
+    costmap: Costmap, start_xy: tuple[float, float], goal_xy: tuple[float, float], algorithm: str = "theta_star"
+) -> GridPath | None:
     """Plan between world points; start/goal inside the inflated area go via their nearest free cell."""
     s_cell, g_cell = costmap.cell(*start_xy), costmap.cell(*goal_xy)
     s_free, g_free = costmap.nearest_free(s_cell), costmap.nearest_free(g_cell)
@@ -301,8 +324,9 @@ def distance_to_goal_map(costmap: Costmap, goal_xy: tuple[float, float]) -> np.n
         rows.append(ia)
         cols.append(ib)
         weights.append(np.full(ia.size, c * costmap.resolution))
-    graph = coo_matrix((np.concatenate(weights), (np.concatenate(rows), np.concatenate(cols))),
-                       shape=(nx * ny, nx * ny)).tocsr()
+    graph = coo_matrix(
+        (np.concatenate(weights), (np.concatenate(rows), np.concatenate(cols))), shape=(nx * ny, nx * ny)
+    ).tocsr()
     g_cell = costmap.nearest_free(costmap.cell(*goal_xy))
     if g_cell is None:
         return np.full((nx, ny), np.inf)

@@ -49,13 +49,17 @@ def write_tables(root: Path, data: dict) -> str:
                 continue
             ordered = {c: rows[c][0] for c in CONTROLLER_ORDER if c in rows}
             ordered.update({c: rows[c][0] for c in rows if c not in ordered})
-            title = f"### {'With obstacles' if scene_set == 'obstacles' else 'Obstacle-free'}, noise: {noise} " \
-                    f"({next(iter(ordered.values()))['episodes']} scenes)"
+            title = (
+                f"### {'With obstacles' if scene_set == 'obstacles' else 'Obstacle-free'}, noise: {noise} "
+                f"({next(iter(ordered.values()))['episodes']} scenes)"
+            )
             parts.append(title + "\n\n" + format_table(ordered))
             reasons = {c: s.get("planner_status") for c, s in ordered.items() if s.get("planner_status")}
             if reasons:
-                parts.append("Planner status at episode end: " + "; ".join(
-                    f"{c}: " + ", ".join(f"{k} {v}" for k, v in r.items()) for c, r in reasons.items()))
+                parts.append(
+                    "Planner status at episode end: "
+                    + "; ".join(f"{c}: " + ", ".join(f"{k} {v}" for k, v in r.items()) for c, r in reasons.items())
+                )
     text = "\n\n".join(parts) + "\n"
     (root / "tables.md").write_text(text)
     return text
@@ -70,7 +74,7 @@ def plot_comparisons(root: Path, data: dict) -> list[Path]:
     written = []
     for (scene_set, noise), rows in sorted(data.items()):
         names = [c for c in CONTROLLER_ORDER if c in rows]
-        pairs = [(a, b) for i, a in enumerate(names) for b in names[i + 1:]]
+        pairs = [(a, b) for i, a in enumerate(names) for b in names[i + 1 :]]
         if not pairs:
             continue
         fig, axes = plt.subplots(1, len(pairs), figsize=(5.5 * len(pairs), 5), squeeze=False)
@@ -81,8 +85,12 @@ def plot_comparisons(root: Path, data: dict) -> list[Path]:
             tb = np.array([float(r["time_s"]) for r in rb[:n]])
             sa = np.array([r["outcome"] == "success" for r in ra[:n]])
             sb = np.array([r["outcome"] == "success" for r in rb[:n]])
-            for mask, colour, label in ((sa & sb, "tab:green", "both succeed"), (sa & ~sb, "tab:blue", f"only {a}"),
-                                        (~sa & sb, "tab:orange", f"only {b}"), (~sa & ~sb, "tab:red", "neither")):
+            for mask, colour, label in (
+                (sa & sb, "tab:green", "both succeed"),
+                (sa & ~sb, "tab:blue", f"only {a}"),
+                (~sa & sb, "tab:orange", f"only {b}"),
+                (~sa & ~sb, "tab:red", "neither"),
+            ):
                 if mask.any():
                     ax.scatter(ta[mask], tb[mask], s=10, c=colour, label=f"{label} ({int(mask.sum())})")
             hi = max(ta.max(), tb.max()) * 1.05
@@ -144,11 +152,20 @@ def plot_paths(path: Path, scene, runs: dict, robot) -> None:
             ax.add_patch(Circle((scene.ball.x, scene.ball.y), scene.ball.r, color="orange"))
         for side, foot in history:
             corners = [foot.transform_point(dx, dy) for dx, dy in ((hl, hw), (-hl, hw), (-hl, -hw), (hl, -hw))]
-            ax.add_patch(Polygon(corners, closed=True, fill=False, lw=0.8,
-                                 edgecolor="tab:green" if side is Side.LEFT else "tab:red"))
+            ax.add_patch(
+                Polygon(
+                    corners, closed=True, fill=False, lw=0.8, edgecolor="tab:green" if side is Side.LEFT else "tab:red"
+                )
+            )
         ax.plot([p.x for p in navs], [p.y for p in navs], "k.-", lw=0.6, ms=2)
-        ax.arrow(scene.goal.x, scene.goal.y, 0.2 * np.cos(scene.goal.theta), 0.2 * np.sin(scene.goal.theta),
-                 width=0.015, color="c")
+        ax.arrow(
+            scene.goal.x,
+            scene.goal.y,
+            0.2 * np.cos(scene.goal.theta),
+            0.2 * np.sin(scene.goal.theta),
+            width=0.015,
+            color="c",
+        )
         ax.set_title(f"{name}: {outcome}, {len(navs) - 1} double steps")
         ax.set_xlim(min(xs + [p.x for p in navs]) - 0.4, max(xs + [p.x for p in navs]) + 0.4)
         ax.set_ylim(min(ys + [p.y for p in navs]) - 0.4, max(ys + [p.y for p in navs]) + 0.4)
@@ -158,8 +175,9 @@ def plot_paths(path: Path, scene, runs: dict, robot) -> None:
     plt.close(fig)
 
 
-def example_paths(root: Path, scenes_file: Path, backend: str = "pymunk", count: int = 4,
-                  policy_run: str | None = None) -> list[Path]:
+def example_paths(
+    root: Path, scenes_file: Path, backend: str = "pymunk", count: int = 4, policy_run: str | None = None
+) -> list[Path]:
     from footsim.planners import make_controller
     from footsim.tasks.scenes import load_scenes
 

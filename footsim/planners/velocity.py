@@ -51,8 +51,9 @@ class VelocityParams:
 
     def __post_init__(self) -> None:
         if self.global_planner not in ("lazy_theta_star", "theta_star", "astar"):
-            raise ValueError(f"controller.global_planner must be lazy_theta_star, theta_star or astar, "
-                             f"got {self.global_planner!r}")
+            raise ValueError(
+                f"controller.global_planner must be lazy_theta_star, theta_star or astar, got {self.global_planner!r}"
+            )
         if self.heading_target not in ("goal", "carrot"):
             raise ValueError(f"controller.heading_target must be goal or carrot, got {self.heading_target!r}")
         if int(self.replan_period) < 1 or int(self.carrot_distance) < 1:
@@ -66,7 +67,7 @@ class VelocityParams:
             raise ValueError(f"controller.min_vel_x must be <= 0, got {self.min_vel_x!r}")
 
     @classmethod
-    def from_mapping(cls, mapping) -> "VelocityParams":
+    def from_mapping(cls, mapping) -> VelocityParams:
         data = {k: v for k, v in dict(mapping).items() if k != "name"}
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(data) - known)
@@ -75,7 +76,9 @@ class VelocityParams:
         return cls(**data)
 
 
-def carrot_command(pose: Pose2D, carrot: tuple[float, float], goal: Pose2D, p: VelocityParams) -> tuple[float, float, float]:
+def carrot_command(
+    pose: Pose2D, carrot: tuple[float, float], goal: Pose2D, p: VelocityParams
+) -> tuple[float, float, float]:
     """The carrot local planner's raw order (vx, vy, ω) in the robot frame (before smoothing).
 
     walk_vel = min(distance · translation_slow_down_factor, max_vel_x) with distance to the
@@ -106,7 +109,9 @@ def carrot_command(pose: Pose2D, carrot: tuple[float, float], goal: Pose2D, p: V
     return vx, vy, omega
 
 
-def smooth(previous: tuple[float, float, float], new: tuple[float, float, float], alpha: float) -> tuple[float, float, float]:
+def smooth(
+    previous: tuple[float, float, float], new: tuple[float, float, float], alpha: float
+) -> tuple[float, float, float]:
     """Exponential filter: ``alpha · new + (1 − alpha) · previous`` per component."""
     return tuple(alpha * n + (1.0 - alpha) * o for n, o in zip(new, previous))
 
@@ -132,7 +137,7 @@ class VelocityController:
         self.reset_state()
 
     @classmethod
-    def from_env(cls, env, params: VelocityParams | dict | None = None) -> "VelocityController":
+    def from_env(cls, env, params: VelocityParams | dict | None = None) -> VelocityController:
         if params is None:
             params = VelocityParams()
         elif not isinstance(params, VelocityParams):
@@ -172,7 +177,10 @@ class VelocityController:
         p = self.params
         if len(self.targets) > 1:  # behind-the-ball: switch to the goal at the pre-goal pose
             pre = self.targets[0]
-            if pose.distance_to(pre) < p.behind_tolerance and abs(wrap_angle(pre.theta - pose.theta)) < p.behind_angle_tolerance:
+            if (
+                pose.distance_to(pre) < p.behind_tolerance
+                and abs(wrap_angle(pre.theta - pose.theta)) < p.behind_angle_tolerance
+            ):
                 self.targets.pop(0)
                 self._replan(pose)
         if self.steps > 0 and self.steps % int(p.replan_period) == 0:
@@ -188,8 +196,11 @@ class VelocityController:
 
     def episode_info(self) -> dict:
         times = np.array(self.plan_times) * 1e3
-        return {"planner_status": self.status, "plans": len(times),
-                "plan_ms_median": float(np.median(times)) if len(times) else math.nan}
+        return {
+            "planner_status": self.status,
+            "plans": len(times),
+            "plan_ms_median": float(np.median(times)) if len(times) else math.nan,
+        }
 
     # -- internals ----------------------------------------------------------------------------
     def _replan(self, pose: Pose2D) -> None:
@@ -213,7 +224,7 @@ class VelocityController:
     def _carrot(self, pose: Pose2D) -> tuple[float, float]:
         """The path point ``carrot_distance`` points past the closest one (never moving backwards)."""
         pts = self.path
-        d = np.hypot(pts[self.path_index:, 0] - pose.x, pts[self.path_index:, 1] - pose.y)
+        d = np.hypot(pts[self.path_index :, 0] - pose.x, pts[self.path_index :, 1] - pose.y)
         self.path_index += int(np.argmin(d))
         k = min(self.path_index + int(self.params.carrot_distance), len(pts) - 1)
         return float(pts[k, 0]), float(pts[k, 1])

@@ -33,7 +33,7 @@ class BetaDistribution(Distribution):
     def proba_distribution_net(self, latent_dim: int) -> nn.Module:
         return nn.Linear(latent_dim, 2 * self.action_dim)
 
-    def proba_distribution(self, params: th.Tensor) -> "BetaDistribution":
+    def proba_distribution(self, params: th.Tensor) -> BetaDistribution:
         a, b = th.chunk(params, 2, dim=-1)
         self.distribution = th.distributions.Beta(F.softplus(a) + 1.0, F.softplus(b) + 1.0)
         return self
@@ -51,7 +51,9 @@ class BetaDistribution(Distribution):
         return log_p.sum(dim=-1)
 
     def entropy(self) -> th.Tensor:
-        return (self.distribution.entropy() + th.log(self.scale.to(self.distribution.concentration1.device))).sum(dim=-1)
+        return (self.distribution.entropy() + th.log(self.scale.to(self.distribution.concentration1.device))).sum(
+            dim=-1
+        )
 
     def sample(self) -> th.Tensor:
         return self._from_unit(self.distribution.rsample().clamp(_EPS, 1.0 - _EPS))

@@ -117,6 +117,8 @@ class LoadedPolicy:
 
     def __call__(self, obs: np.ndarray, deterministic: bool = True) -> np.ndarray:
         if self.obs_rms is not None:
-            obs = np.clip((obs - self.obs_rms.mean) / np.sqrt(self.obs_rms.var + self.epsilon), -self.clip_obs, self.clip_obs)
+            obs = np.clip(
+                (obs - self.obs_rms.mean) / np.sqrt(self.obs_rms.var + self.epsilon), -self.clip_obs, self.clip_obs
+            )
         action, _ = self.model.predict(obs, deterministic=deterministic)
         return action

@@ -12,8 +12,9 @@ from __future__ import annotations
 import csv
 import io
 import math
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable, Protocol
+from typing import Protocol
 
 import numpy as np
 
@@ -64,8 +65,12 @@ def run_episode(env, controller: Controller, scene: Scene, seed: int, record_fra
         "steps": int(info["steps"]),
         "return": float(total),
         "contact_steps": contact_steps,
-        "final_x": float(pose[0]), "final_y": float(pose[1]), "final_theta": float(pose[2]),
-        "goal_x": scene.goal.x, "goal_y": scene.goal.y, "goal_theta": scene.goal.theta,
+        "final_x": float(pose[0]),
+        "final_y": float(pose[1]),
+        "final_theta": float(pose[2]),
+        "goal_x": scene.goal.x,
+        "goal_y": scene.goal.y,
+        "goal_theta": scene.goal.theta,
     }
     if hasattr(controller, "episode_info"):  # e.g. a planner's failure reason and planning times
         record.update(controller.episode_info())
@@ -81,12 +86,24 @@ def save_video(path: Path, frames: list[np.ndarray], fps: float = 2.0) -> None:
     images = [Image.fromarray(f) for f in frames if f is not None]
     if not images:
         return
-    atomic_save(lambda tmp: images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:],
-                                           duration=int(1000 / fps), loop=0), path, ".gif")
+    atomic_save(
+        lambda tmp: images[0].save(
+            tmp, format="GIF", save_all=True, append_images=images[1:], duration=int(1000 / fps), loop=0
+        ),
+        path,
+        ".gif",
+    )
 
 
-def evaluate(env, controller: Controller, scenes: list[Scene], seed: int = 0, progress: bool = True,
-             video_dir: Path | None = None, video_episodes: int = 0) -> list[dict]:
+def evaluate(
+    env,
+    controller: Controller,
+    scenes: list[Scene],
+    seed: int = 0,
+    progress: bool = True,
+    video_dir: Path | None = None,
+    video_episodes: int = 0,
+) -> list[dict]:
     """Run every scene once; with ``video_dir``, the first ``video_episodes`` are saved as GIFs."""
     records = []
     iterator = range(len(scenes))
@@ -143,8 +160,14 @@ def _mean_std(mean, std) -> str:
     return f"{mean:.2f} ± {std:.2f}"
 
 
-def write_results(out_dir: Path, records: list[dict], summary: dict, scenes: list[Scene] | None = None,
-                  plot: bool = True, title: str = "") -> None:
+def write_results(
+    out_dir: Path,
+    records: list[dict],
+    summary: dict,
+    scenes: list[Scene] | None = None,
+    plot: bool = True,
+    title: str = "",
+) -> None:
     from footsim.rl.common import write_json
 
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -172,17 +195,31 @@ def plot_goals(path: Path, records: list[dict], title: str = "") -> None:
     ok = [r for r in records if r["outcome"] == "success"]
     if ok:
         times = np.array([r["time_s"] for r in ok])
-        q = ax.quiver([r["goal_x"] for r in ok], [r["goal_y"] for r in ok],
-                      np.cos([r["goal_theta"] for r in ok]), np.sin([r["goal_theta"] for r in ok]),
-                      times, cmap="viridis", norm=LogNorm(vmin=max(times.min(), 1e-2), vmax=max(times.max(), 1e-1)),
-                      scale=30, width=0.004)
+        q = ax.quiver(
+            [r["goal_x"] for r in ok],
+            [r["goal_y"] for r in ok],
+            np.cos([r["goal_theta"] for r in ok]),
+            np.sin([r["goal_theta"] for r in ok]),
+            times,
+            cmap="viridis",
+            norm=LogNorm(vmin=max(times.min(), 1e-2), vmax=max(times.max(), 1e-1)),
+            scale=30,
+            width=0.004,
+        )
         fig.colorbar(q, ax=ax, label="time to reach [s]")
     for outcome, colour in (("fall", "red"), ("timeout", "black"), ("collision", "cyan"), ("sim_error", "magenta")):
         bad = [r for r in records if r["outcome"] == outcome]
         if bad:
-            ax.quiver([r["goal_x"] for r in bad], [r["goal_y"] for r in bad],
-                      np.cos([r["goal_theta"] for r in bad]), np.sin([r["goal_theta"] for r in bad]),
-                      color=colour, scale=30, width=0.004, label=f"{outcome} ({len(bad)})")
+            ax.quiver(
+                [r["goal_x"] for r in bad],
+                [r["goal_y"] for r in bad],
+                np.cos([r["goal_theta"] for r in bad]),
+                np.sin([r["goal_theta"] for r in bad]),
+                color=colour,
+                scale=30,
+                width=0.004,
+                label=f"{outcome} ({len(bad)})",
+            )
     ax.plot([0], [0], "k+", markersize=12)
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
@@ -219,9 +256,14 @@ def evaluate_run(run_cfg, run_dir: Path, out_dir: Path, cfg_eval, label: str | N
         if bool(scenes[0].obstacles) != bool(env.task.obstacles):
             print("note: the scene set and the task disagree about obstacles; evaluating as given")
         controller = PolicyController(LoadedPolicy(run_dir), deterministic=bool(cfg_eval.deterministic))
-        records = evaluate(env, controller, scenes, seed=int(cfg_eval.get("seed", 0)),
-                           video_dir=out_dir / "videos" if video else None,
-                           video_episodes=int(cfg_eval.get("video_episodes", 3)))
+        records = evaluate(
+            env,
+            controller,
+            scenes,
+            seed=int(cfg_eval.get("seed", 0)),
+            video_dir=out_dir / "videos" if video else None,
+            video_episodes=int(cfg_eval.get("video_episodes", 3)),
+        )
     finally:
         env.close()
     summary = summarize(records)
@@ -254,16 +296,26 @@ def evaluate_baseline(cfg_eval, out_dir: Path, label: str | None = None) -> dict
     noise = cfg_eval.get("noise") or "none"
     randomization = cfg_eval.get("randomization") or "none"
     video = bool(cfg_eval.get("video", False))
-    env = FootstepEnv(backend=fconf.to_plain(backend), task=fconf.to_plain(task), noise=fconf.to_plain(noise),
-                      randomization=fconf.to_plain(randomization), render_mode="rgb_array" if video else None)
+    env = FootstepEnv(
+        backend=fconf.to_plain(backend),
+        task=fconf.to_plain(task),
+        noise=fconf.to_plain(noise),
+        randomization=fconf.to_plain(randomization),
+        render_mode="rgb_array" if video else None,
+    )
     try:
         if scenes is None:
             scenes = eval_scenes(cfg_eval, env.sampler)
         controller_cfg = fconf.to_plain(cfg_eval.controller)
         controller = make_controller(env, controller_cfg)
-        records = evaluate(env, controller, scenes, seed=int(cfg_eval.get("seed", 0)),
-                           video_dir=out_dir / "videos" if video else None,
-                           video_episodes=int(cfg_eval.get("video_episodes", 3)))
+        records = evaluate(
+            env,
+            controller,
+            scenes,
+            seed=int(cfg_eval.get("seed", 0)),
+            video_dir=out_dir / "videos" if video else None,
+            video_episodes=int(cfg_eval.get("video_episodes", 3)),
+        )
         cfg_used = {"controller": controller_cfg, **env.config}
     finally:
         env.close()
@@ -271,8 +323,12 @@ def evaluate_baseline(cfg_eval, out_dir: Path, label: str | None = None) -> dict
     statuses = [r["planner_status"] for r in records if "planner_status" in r]
     summary["planner_status"] = {k: statuses.count(k) for k in sorted(set(statuses))}
     config = env.config
-    conditions = _conditions(config["backend"]["name"], config["task"]["name"], config["noise"].get("name", ""),
-                             (config.get("randomization") or {}).get("name"))
+    conditions = _conditions(
+        config["backend"]["name"],
+        config["task"]["name"],
+        config["noise"].get("name", ""),
+        (config.get("randomization") or {}).get("name"),
+    )
     name = label or f"{controller_cfg['name']} baseline ({conditions})"
     summary["label"] = name
     write_results(out_dir, records, summary, scenes, plot=bool(cfg_eval.get("plot", True)), title=name)

@@ -16,8 +16,17 @@ from pathlib import Path
 from omegaconf import DictConfig, OmegaConf
 
 from footsim.rl.common import (
-    CHECKPOINT_DIR, CONFIG_FILE, MODEL_FILE, VECNORM_FILE, atomic_save, load_run_config, policy_class, policy_kwargs,
-    save_config, validate_train_config, write_json,
+    CHECKPOINT_DIR,
+    CONFIG_FILE,
+    MODEL_FILE,
+    VECNORM_FILE,
+    atomic_save,
+    load_run_config,
+    policy_class,
+    policy_kwargs,
+    save_config,
+    validate_train_config,
+    write_json,
 )
 
 LATEST = "latest.zip"
@@ -56,13 +65,18 @@ def build_vec_env(cfg: DictConfig):
         # numba, the env and the simulator, so they share those pages: measured 153 MB PSS per
         # MuJoCo worker instead of 268 MB (docs/BENCHMARKS.md).  No effect once a forkserver runs.
         multiprocessing.set_forkserver_preload(
-            ["stable_baselines3.common.vec_env", "footsim.env", BACKENDS[cfg.backend.name].target.split(":")[0]])
+            ["stable_baselines3.common.vec_env", "footsim.env", BACKENDS[cfg.backend.name].target.split(":")[0]]
+        )
     factories = [_env_factory(cfg, i, worker_process=kind == "subproc") for i in range(n_envs)]
     venv = DummyVecEnv(factories) if kind == "dummy" else SubprocVecEnv(factories, start_method="forkserver")
     venv.seed(int(cfg.seed))
     if cfg.agent.normalize_reward or cfg.agent.normalize_obs:
-        venv = VecNormalize(venv, norm_obs=bool(cfg.agent.normalize_obs), norm_reward=bool(cfg.agent.normalize_reward),
-                            gamma=float(cfg.agent.gamma))
+        venv = VecNormalize(
+            venv,
+            norm_obs=bool(cfg.agent.normalize_obs),
+            norm_reward=bool(cfg.agent.normalize_reward),
+            gamma=float(cfg.agent.gamma),
+        )
     return venv
 
 
@@ -186,12 +200,23 @@ def train(cfg: DictConfig, run_dir: Path) -> dict:
         print(f"resuming {run_dir} at {done} of {cfg.train.total_timesteps} steps")
     else:
         model = PPO(
-            policy_class(agent), venv, policy_kwargs=policy_kwargs(agent), learning_rate=float(agent.learning_rate),
-            n_steps=int(agent.n_steps), batch_size=int(agent.batch_size), n_epochs=int(agent.n_epochs),
-            gamma=float(agent.gamma), gae_lambda=float(agent.gae_lambda), clip_range=float(agent.clip_range),
-            ent_coef=float(agent.ent_coef), vf_coef=float(agent.vf_coef), max_grad_norm=float(agent.max_grad_norm),
-            tensorboard_log=str(run_dir / "tb") if cfg.train.tensorboard else None, seed=int(cfg.seed),
-            device="cpu", verbose=0,
+            policy_class(agent),
+            venv,
+            policy_kwargs=policy_kwargs(agent),
+            learning_rate=float(agent.learning_rate),
+            n_steps=int(agent.n_steps),
+            batch_size=int(agent.batch_size),
+            n_epochs=int(agent.n_epochs),
+            gamma=float(agent.gamma),
+            gae_lambda=float(agent.gae_lambda),
+            clip_range=float(agent.clip_range),
+            ent_coef=float(agent.ent_coef),
+            vf_coef=float(agent.vf_coef),
+            max_grad_norm=float(agent.max_grad_norm),
+            tensorboard_log=str(run_dir / "tb") if cfg.train.tensorboard else None,
+            seed=int(cfg.seed),
+            device="cpu",
+            verbose=0,
         )
         if cfg.get("init_from"):
             from footsim.rl.transfer import init_from_run
@@ -206,11 +231,20 @@ def train(cfg: DictConfig, run_dir: Path) -> dict:
         from stable_baselines3.common.callbacks import CallbackList
 
         with StopOnInterrupt() as stop:
-            callback = CallbackList([_make_checkpoint_callback(run_dir, int(cfg.train.checkpoint_freq),
-                                                               int(cfg.train.n_envs)),
-                                     _make_outcome_callback(), _make_stop_callback(stop)])
-            model.learn(total_timesteps=remaining, callback=callback, progress_bar=bool(cfg.train.progress_bar),
-                        reset_num_timesteps=resume_dir is None, tb_log_name="ppo")
+            callback = CallbackList(
+                [
+                    _make_checkpoint_callback(run_dir, int(cfg.train.checkpoint_freq), int(cfg.train.n_envs)),
+                    _make_outcome_callback(),
+                    _make_stop_callback(stop),
+                ]
+            )
+            model.learn(
+                total_timesteps=remaining,
+                callback=callback,
+                progress_bar=bool(cfg.train.progress_bar),
+                reset_num_timesteps=resume_dir is None,
+                tb_log_name="ppo",
+            )
         if stop.requested:
             save_checkpoint(model, run_dir)
             venv.close()
@@ -222,8 +256,14 @@ def train(cfg: DictConfig, run_dir: Path) -> dict:
         atomic_save(model.get_vec_normalize_env().save, run_dir / VECNORM_FILE, ".pkl")
     save_checkpoint(model, run_dir)
     venv.close()
-    write_json(run_dir / "train_info.json", {"num_timesteps": int(model.num_timesteps), "wall_time_s": wall,
-                                             "steps_per_s": remaining / wall if wall > 0 and remaining > 0 else None})
+    write_json(
+        run_dir / "train_info.json",
+        {
+            "num_timesteps": int(model.num_timesteps),
+            "wall_time_s": wall,
+            "steps_per_s": remaining / wall if wall > 0 and remaining > 0 else None,
+        },
+    )
     print(f"trained {model.num_timesteps} steps in {wall:.0f} s; model: {run_dir / MODEL_FILE}")
 
     if not cfg.eval.after_train:

@@ -36,19 +36,27 @@ def init_from_run(model, parent_dir: str | Path, task=None) -> dict:
         raise FileNotFoundError(f"init_from: no trained model at {path}")
     parent = PPO.load(path, device="cpu")
     if model.action_space.shape != parent.action_space.shape:
-        raise ValueError(f"init_from: the action spaces differ: parent {parent.action_space.shape} "
-                         f"vs this run {model.action_space.shape}")
+        raise ValueError(
+            f"init_from: the action spaces differ: parent {parent.action_space.shape} "
+            f"vs this run {model.action_space.shape}"
+        )
     ours, theirs = model.observation_space.shape, parent.observation_space.shape
     parent_cfg = load_run_config(parent_dir)
     expand = ours != theirs
     if expand:
-        parent_layout = _layout(parent_cfg.get("task")) or ((("goal_and_actions", OBS_WITHOUT_RAYS),)
-                                                            if theirs == (OBS_WITHOUT_RAYS,) else None)
+        parent_layout = _layout(parent_cfg.get("task")) or (
+            (("goal_and_actions", OBS_WITHOUT_RAYS),) if theirs == (OBS_WITHOUT_RAYS,) else None
+        )
         our_layout = _layout(task)
         if our_layout is None and len(ours) == 1 and theirs == (OBS_WITHOUT_RAYS,):
             our_layout = parent_layout  # no task given: the historical rule, a 17-D parent widens
-        prefix = (parent_layout is not None and our_layout is not None and len(ours) == 1
-                  and ours[0] > theirs[0] and our_layout[: len(parent_layout)] == parent_layout)
+        prefix = (
+            parent_layout is not None
+            and our_layout is not None
+            and len(ours) == 1
+            and ours[0] > theirs[0]
+            and our_layout[: len(parent_layout)] == parent_layout
+        )
         if not prefix:
             raise ValueError(
                 f"init_from: the observation spaces differ: parent {theirs} vs this run {ours} "
@@ -66,7 +74,9 @@ def init_from_run(model, parent_dir: str | Path, task=None) -> dict:
     try:
         model.policy.load_state_dict(state)
     except RuntimeError as err:
-        raise ValueError(f"init_from: the networks differ in shape (agent.net_arch must match the parent's): {err}") from None
+        raise ValueError(
+            f"init_from: the networks differ in shape (agent.net_arch must match the parent's): {err}"
+        ) from None
 
     copied_stats = False
     venv = model.get_vec_normalize_env()
@@ -96,8 +106,12 @@ def _layout(task) -> tuple[tuple[str, int], ...] | None:
 
     if task is None or task.get("obstacles") is None:
         return None
-    return observation_layout(bool(task["obstacles"]), int(task.get("n_rays", 36)), bool(task.get("observe_imu", False)),
-                              bool(task.get("path_hint", False)))
+    return observation_layout(
+        bool(task["obstacles"]),
+        int(task.get("n_rays", 36)),
+        bool(task.get("observe_imu", False)),
+        bool(task.get("path_hint", False)),
+    )
 
 
 def _names(layout) -> str:
@@ -109,7 +123,12 @@ def _widen_first_layers(parent_state: dict, child_state: dict) -> dict:
     out = {}
     for key, value in parent_state.items():
         target = child_state.get(key)
-        if target is not None and value.dim() == 2 and target.shape[0] == value.shape[0] and target.shape[1] > value.shape[1]:
+        if (
+            target is not None
+            and value.dim() == 2
+            and target.shape[0] == value.shape[0]
+            and target.shape[1] > value.shape[1]
+        ):
             widened = target.new_zeros(target.shape)
             widened[:, : value.shape[1]] = value
             value = widened

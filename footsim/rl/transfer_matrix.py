@@ -27,12 +27,24 @@ from pathlib import Path
 
 from omegaconf import OmegaConf
 
-USAGE = ("usage: footsim-transfer-matrix [backends=pymunk,mujoco] [eval_backends=...] [runs=MULTIRUN_DIR] [out=DIR] "
-         "[scenes=FILE | n_scenes=N scenes_seed=S] [randomization=none,default] [launcher=local] "
-         "[footsim-train overrides ...]")
+USAGE = (
+    "usage: footsim-transfer-matrix [backends=pymunk,mujoco] [eval_backends=...] [runs=MULTIRUN_DIR] [out=DIR] "
+    "[scenes=FILE | n_scenes=N scenes_seed=S] [randomization=none,default] [launcher=local] "
+    "[footsim-train overrides ...]"
+)
 LIST_KEYS = ("backends", "eval_backends", "randomization")
-METRICS = ("episodes", "success", "timeout", "fall", "collision", "sim_error", "success_time_mean",
-           "success_time_std", "success_steps_mean", "success_steps_std")
+METRICS = (
+    "episodes",
+    "success",
+    "timeout",
+    "fall",
+    "collision",
+    "sim_error",
+    "success_time_mean",
+    "success_time_std",
+    "success_steps_mean",
+    "success_steps_std",
+)
 COLUMNS = ("train_backend", "eval_backend", "randomization", *METRICS, "run", "eval_dir")
 
 
@@ -69,14 +81,17 @@ def parse_args(argv: list[str]) -> tuple[dict, list[str]]:
 
     require_known_backends((cfg["backends"] or []) + (cfg["eval_backends"] or []), "footsim-transfer-matrix")
     if cfg["runs"] and train_overrides:
-        raise SystemExit(f"footsim-transfer-matrix: runs= reuses trained policies; unknown keys {train_overrides} "
-                         f"(own keys: {sorted(cfg)})")
+        raise SystemExit(
+            f"footsim-transfer-matrix: runs= reuses trained policies; unknown keys {train_overrides} "
+            f"(own keys: {sorted(cfg)})"
+        )
     return cfg, train_overrides
 
 
 # -- 1. training --------------------------------------------------------------------------------
-def train_command(backends: list[str], overrides: list[str], sweep_dir: Path, launcher: str | None,
-                  train_eval: bool) -> list[str]:
+def train_command(
+    backends: list[str], overrides: list[str], sweep_dir: Path, launcher: str | None, train_eval: bool
+) -> list[str]:
     cmd = [sys.executable, "-c", "from footsim.rl.train import main; main()", "-m"]
     if launcher:
         cmd.append(f"+launcher={launcher}")
@@ -86,14 +101,17 @@ def train_command(backends: list[str], overrides: list[str], sweep_dir: Path, la
     return [*cmd, *overrides, f"hydra.sweep.dir={sweep_dir}"]
 
 
-def train_policies(backends: list[str], overrides: list[str], sweep_dir: Path, launcher: str | None,
-                   train_eval: bool) -> None:
+def train_policies(
+    backends: list[str], overrides: list[str], sweep_dir: Path, launcher: str | None, train_eval: bool
+) -> None:
     cmd = train_command(backends, overrides, sweep_dir, launcher, train_eval)
     print("training:", " ".join(cmd[3:]), flush=True)
     proc = subprocess.run(cmd)
     if proc.returncode != 0:  # some jobs may still have finished: the matrix uses what exists
-        print(f"footsim-transfer-matrix: footsim-train exited with {proc.returncode}; using the runs that finished",
-              file=sys.stderr)
+        print(
+            f"footsim-transfer-matrix: footsim-train exited with {proc.returncode}; using the runs that finished",
+            file=sys.stderr,
+        )
 
 
 def find_runs(root: Path) -> list[Path]:
@@ -101,8 +119,11 @@ def find_runs(root: Path) -> list[Path]:
     from footsim.rl.common import CONFIG_FILE, MODEL_FILE
 
     root = Path(root)
-    found = {p.parent for p in root.rglob(MODEL_FILE) if (p.parent / CONFIG_FILE).is_file()
-             and "checkpoints" not in p.parent.parts[len(root.parts):]}
+    found = {
+        p.parent
+        for p in root.rglob(MODEL_FILE)
+        if (p.parent / CONFIG_FILE).is_file() and "checkpoints" not in p.parent.parts[len(root.parts) :]
+    }
 
     def key(p: Path):
         rel = p.relative_to(root).parts
@@ -122,8 +143,11 @@ def scene_file(cfg: dict, run_cfg, out: Path) -> Path:
     if not path.is_file():
         sampler, task = fconf.build_task(fconf.to_plain(run_cfg.task))
         n, seed = int(cfg["n_scenes"]), int(cfg["scenes_seed"])
-        save_scenes(path, sample_scenes(sampler, n, seed),
-                    meta={"n": n, "seed": seed, "task": run_cfg.task.name, "obstacles": bool(task.obstacles)})
+        save_scenes(
+            path,
+            sample_scenes(sampler, n, seed),
+            meta={"n": n, "seed": seed, "task": run_cfg.task.name, "obstacles": bool(task.obstacles)},
+        )
     return path
 
 
@@ -141,8 +165,9 @@ def eval_config(run_cfg, eval_backend: str, randomization: str):
     return cfg
 
 
-def evaluate_cell(run_dir: Path, run_cfg, eval_backend: str, randomization: str, scenes: Path, cell_dir: Path,
-                  cfg: dict) -> dict:
+def evaluate_cell(
+    run_dir: Path, run_cfg, eval_backend: str, randomization: str, scenes: Path, cell_dir: Path, cfg: dict
+) -> dict:
     import json
 
     from footsim.rl.evaluate import evaluate_run
@@ -150,8 +175,15 @@ def evaluate_cell(run_dir: Path, run_cfg, eval_backend: str, randomization: str,
     summary_path = cell_dir / "summary.json"
     if summary_path.is_file():
         return json.loads(summary_path.read_text())
-    cfg_eval = OmegaConf.create({"scenes": str(scenes), "deterministic": bool(cfg["deterministic"]),
-                                 "seed": int(cfg["eval_seed"]), "plot": bool(cfg["plot"]), "video": False})
+    cfg_eval = OmegaConf.create(
+        {
+            "scenes": str(scenes),
+            "deterministic": bool(cfg["deterministic"]),
+            "seed": int(cfg["eval_seed"]),
+            "plot": bool(cfg["plot"]),
+            "video": False,
+        }
+    )
     label = f"{run_cfg.backend.name} -> {eval_backend} (randomization={randomization})"
     return evaluate_run(eval_config(run_cfg, eval_backend, randomization), run_dir, cell_dir, cfg_eval, label=label)
 
@@ -181,9 +213,15 @@ def aggregate(rows: list[dict], metric: str, randomization: str, train: list[str
     m = np.full((len(train), len(evals)), np.nan)
     for i, tb in enumerate(train):
         for j, eb in enumerate(evals):
-            vals = [float(r[metric]) for r in rows if r["train_backend"] == tb and r["eval_backend"] == eb
-                    and r["randomization"] == randomization and r.get(metric) is not None
-                    and not math.isnan(float(r[metric]))]
+            vals = [
+                float(r[metric])
+                for r in rows
+                if r["train_backend"] == tb
+                and r["eval_backend"] == eb
+                and r["randomization"] == randomization
+                and r.get(metric) is not None
+                and not math.isnan(float(r[metric]))
+            ]
             if vals:
                 m[i, j] = float(np.mean(vals))
     return m
@@ -194,18 +232,36 @@ def markdown(rows: list[dict], train: list[str], evals: list[str], randomization
     for rand in randomizations:
         succ = aggregate(rows, "success", rand, train, evals)
         stime = aggregate(rows, "success_time_mean", rand, train, evals)
-        lines += [f"### randomization={rand}: success (mean success time [s])", "",
-                  "| train \\ eval | " + " | ".join(evals) + " |", "|---|" + "---|" * len(evals)]
+        lines += [
+            f"### randomization={rand}: success (mean success time [s])",
+            "",
+            "| train \\ eval | " + " | ".join(evals) + " |",
+            "|---|" + "---|" * len(evals),
+        ]
         for i, tb in enumerate(train):
-            cells = [("–" if math.isnan(succ[i, j]) else f"{succ[i, j]:.2f}")
-                     + ("" if math.isnan(stime[i, j]) else f" ({stime[i, j]:.1f})") for j in range(len(evals))]
+            cells = [
+                ("–" if math.isnan(succ[i, j]) else f"{succ[i, j]:.2f}")
+                + ("" if math.isnan(stime[i, j]) else f" ({stime[i, j]:.1f})")
+                for j in range(len(evals))
+            ]
             lines.append(f"| {tb} | " + " | ".join(cells) + " |")
         lines.append("")
     return "\n".join(lines)
 
 
-def plot_heatmap(path: Path, rows: list[dict], metric: str, title: str, train: list[str], evals: list[str],
-                 randomizations: list[str], fmt: str, vmin=None, vmax=None, cmap="viridis") -> None:
+def plot_heatmap(
+    path: Path,
+    rows: list[dict],
+    metric: str,
+    title: str,
+    train: list[str],
+    evals: list[str],
+    randomizations: list[str],
+    fmt: str,
+    vmin=None,
+    vmax=None,
+    cmap="viridis",
+) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -215,8 +271,9 @@ def plot_heatmap(path: Path, rows: list[dict], metric: str, title: str, train: l
     from footsim.rl.common import atomic_save
 
     n = len(randomizations)
-    fig, axes = plt.subplots(1, n, figsize=(1.2 + 1.6 * len(evals) * n + 1.0 * n, 1.0 + 1.0 * len(train) + 0.8),
-                             squeeze=False)
+    fig, axes = plt.subplots(
+        1, n, figsize=(1.2 + 1.6 * len(evals) * n + 1.0 * n, 1.0 + 1.0 * len(train) + 0.8), squeeze=False
+    )
     for ax, rand in zip(axes[0], randomizations):
         m = aggregate(rows, metric, rand, train, evals)
         shown = np.ma.masked_invalid(m)
@@ -224,8 +281,15 @@ def plot_heatmap(path: Path, rows: list[dict], metric: str, title: str, train: l
         for i in range(len(train)):
             for j in range(len(evals)):
                 text = "n/a" if math.isnan(m[i, j]) else format(m[i, j], fmt)
-                ax.text(j, i, text, ha="center", va="center", fontsize=10,
-                        bbox={"facecolor": "white", "alpha": 0.7, "linewidth": 0})
+                ax.text(
+                    j,
+                    i,
+                    text,
+                    ha="center",
+                    va="center",
+                    fontsize=10,
+                    bbox={"facecolor": "white", "alpha": 0.7, "linewidth": 0},
+                )
         ax.set_xticks(range(len(evals)), evals)
         ax.set_yticks(range(len(train)), train)
         ax.set_xlabel("evaluated on")
@@ -244,10 +308,29 @@ def write_outputs(out: Path, rows: list[dict], train: list[str], evals: list[str
     write_csv(out / "matrix.csv", rows)
     table = markdown(rows, train, evals, randomizations)
     atomic_write_text(out / "matrix.md", table + "\n")
-    plot_heatmap(out / "heatmap_success.png", rows, "success", "success rate (rows: trained on, columns: evaluated on)",
-                 train, evals, randomizations, ".2f", vmin=0.0, vmax=1.0)
-    plot_heatmap(out / "heatmap_success_time.png", rows, "success_time_mean", "mean success time [s]",
-                 train, evals, randomizations, ".1f", cmap="viridis_r")
+    plot_heatmap(
+        out / "heatmap_success.png",
+        rows,
+        "success",
+        "success rate (rows: trained on, columns: evaluated on)",
+        train,
+        evals,
+        randomizations,
+        ".2f",
+        vmin=0.0,
+        vmax=1.0,
+    )
+    plot_heatmap(
+        out / "heatmap_success_time.png",
+        rows,
+        "success_time_mean",
+        "mean success time [s]",
+        train,
+        evals,
+        randomizations,
+        ".1f",
+        cmap="viridis_r",
+    )
     return table
 
 
@@ -274,8 +357,11 @@ def transfer_matrix(cfg: dict, train_overrides: list[str]) -> list[dict]:
     if len(tasks) > 1:
         print(f"note: the runs were trained on different tasks {sorted(tasks)}; all are evaluated on one scene file")
     scenes = scene_file(cfg, configs[runs[0]], out)
-    print(f"{len(runs)} {'policy' if len(runs) == 1 else 'policies'} (trained on {', '.join(train_backends)}) x eval backends {evals} x randomization "
-          f"{cfg['randomization']}; scenes: {scenes}", flush=True)
+    print(
+        f"{len(runs)} {'policy' if len(runs) == 1 else 'policies'} (trained on {', '.join(train_backends)}) x eval backends {evals} x randomization "
+        f"{cfg['randomization']}; scenes: {scenes}",
+        flush=True,
+    )
 
     rows = []
     for run in runs:
@@ -285,9 +371,16 @@ def transfer_matrix(cfg: dict, train_overrides: list[str]) -> list[dict]:
             for rand in cfg["randomization"]:
                 cell_dir = out / "eval" / f"{name.replace('/', '_')}_{run_cfg.backend.name}" / f"{eval_backend}_{rand}"
                 summary = evaluate_cell(run, run_cfg, eval_backend, rand, scenes, cell_dir, cfg)
-                rows.append({"train_backend": run_cfg.backend.name, "eval_backend": eval_backend,
-                             "randomization": rand, **{k: summary.get(k) for k in METRICS},
-                             "run": str(run), "eval_dir": str(cell_dir)})
+                rows.append(
+                    {
+                        "train_backend": run_cfg.backend.name,
+                        "eval_backend": eval_backend,
+                        "randomization": rand,
+                        **{k: summary.get(k) for k in METRICS},
+                        "run": str(run),
+                        "eval_dir": str(cell_dir),
+                    }
+                )
                 write_csv(out / "matrix.csv", rows)  # partial results survive an interruption
     table = write_outputs(out, rows, train_backends, evals, list(cfg["randomization"]))
     print(table)

@@ -26,7 +26,7 @@ import numpy as np
 from footsim.robots.spec import Box, Capsule, Cylinder, Link, RobotSpec, Side, Sphere, sole_frame_name
 
 if TYPE_CHECKING:  # pragma: no cover
-    import mujoco
+    pass
 
 FREE_JOINT = "root"
 IMU_SITE = "imu"
@@ -119,8 +119,9 @@ def _link_side(spec: RobotSpec, link_name: str) -> Side | None:
     return None
 
 
-def build_mjcf(spec: RobotSpec, *, floor: bool = True, timestep: float = TIMESTEP,
-               rigid_upper_body: bool = False) -> MjcfModel:
+def build_mjcf(
+    spec: RobotSpec, *, floor: bool = True, timestep: float = TIMESTEP, rigid_upper_body: bool = False
+) -> MjcfModel:
     """Build the MuJoCo model of ``spec``.
 
     ``floor`` adds a ground plane named :data:`FLOOR_GEOM` and a light (a backend that makes
@@ -146,8 +147,9 @@ def build_mjcf(spec: RobotSpec, *, floor: bool = True, timestep: float = TIMESTE
     world = mj.worldbody
     if floor:
         world.add_light(name="top", pos=[0.0, 0.0, 3.0], dir=[0.0, 0.0, -1.0])
-        ground = world.add_geom(name=FLOOR_GEOM, type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 0.05],
-                                rgba=[0.35, 0.45, 0.35, 1.0])
+        ground = world.add_geom(
+            name=FLOOR_GEOM, type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 0.05], rgba=[0.35, 0.45, 0.35, 1.0]
+        )
         ground.contype, ground.conaffinity = _WORLD_BIT, _WORLD_BIT
         ground.friction = list(CONTACT_FRICTION)
         ground.solref = list(CONTACT_SOLREF)
@@ -203,12 +205,15 @@ def build_mjcf(spec: RobotSpec, *, floor: bool = True, timestep: float = TIMESTE
         actuator.forcerange = [-joint.effort, joint.effort]
         actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
 
-    mj.add_sensor(name="imu_gyro", type=mujoco.mjtSensor.mjSENS_GYRO,
-                  objtype=mujoco.mjtObj.mjOBJ_SITE, objname=IMU_SITE)
-    mj.add_sensor(name="imu_accel", type=mujoco.mjtSensor.mjSENS_ACCELEROMETER,
-                  objtype=mujoco.mjtObj.mjOBJ_SITE, objname=IMU_SITE)
-    mj.add_sensor(name="imu_quat", type=mujoco.mjtSensor.mjSENS_FRAMEQUAT,
-                  objtype=mujoco.mjtObj.mjOBJ_SITE, objname=IMU_SITE)
+    mj.add_sensor(
+        name="imu_gyro", type=mujoco.mjtSensor.mjSENS_GYRO, objtype=mujoco.mjtObj.mjOBJ_SITE, objname=IMU_SITE
+    )
+    mj.add_sensor(
+        name="imu_accel", type=mujoco.mjtSensor.mjSENS_ACCELEROMETER, objtype=mujoco.mjtObj.mjOBJ_SITE, objname=IMU_SITE
+    )
+    mj.add_sensor(
+        name="imu_quat", type=mujoco.mjtSensor.mjSENS_FRAMEQUAT, objtype=mujoco.mjtObj.mjOBJ_SITE, objname=IMU_SITE
+    )
 
     # Keyframe: walk-ready pose, base lowered so the soles rest on the floor.
     model = mj.compile()
@@ -216,7 +221,7 @@ def build_mjcf(spec: RobotSpec, *, floor: bool = True, timestep: float = TIMESTE
     ctrl = np.zeros(model.nu)
     sole_height = -spec.sole_transform(Side.LEFT, spec.walk_ready)[2, 3]
     free_adr = model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, FREE_JOINT)]
-    qpos[free_adr:free_adr + 7] = [0.0, 0.0, sole_height, 1.0, 0.0, 0.0, 0.0]
+    qpos[free_adr : free_adr + 7] = [0.0, 0.0, sole_height, 1.0, 0.0, 0.0, 0.0]
     for name in (n for n in spec.joint_names if n not in rigid):
         angle = spec.walk_ready.get(name, 0.0)
         qpos[model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)]] = angle

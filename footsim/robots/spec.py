@@ -529,15 +529,29 @@ class RobotSpec:
             foot, sole = self.sole(side)
             if foot != ankle_roll.child:
                 raise ValueError(f"the {side.value} sole must be on link {ankle_roll.child!r}, not {foot!r}")
-            segments = (roll.origin.xyz, pitch.origin.xyz, knee.origin.xyz, ankle_pitch.origin.xyz,
-                        ankle_roll.origin.xyz, sole)
-            if any(abs(s[0]) > 1e-9 or abs(s[1]) > 1e-9 for s in segments) or abs(yaw.origin.xyz[0]) > 1e-9 \
-                    or abs(yaw.origin.xyz[2]) > 1e-9:
+            segments = (
+                roll.origin.xyz,
+                pitch.origin.xyz,
+                knee.origin.xyz,
+                ankle_pitch.origin.xyz,
+                ankle_roll.origin.xyz,
+                sole,
+            )
+            if (
+                any(abs(s[0]) > 1e-9 or abs(s[1]) > 1e-9 for s in segments)
+                or abs(yaw.origin.xyz[0]) > 1e-9
+                or abs(yaw.origin.xyz[2]) > 1e-9
+            ):
                 raise ValueError(f"the {side.value} leg chain is not the straight chain LegGeometry describes")
             if abs(pitch.origin.xyz[2]) > 1e-9 or abs(ankle_roll.origin.xyz[2]) > 1e-9:
                 raise ValueError(f"the {side.value} leg's hip/ankle axes must intersect")
-            dims[side] = (yaw.origin.xyz[1] * side.sign, -roll.origin.xyz[2], -knee.origin.xyz[2],
-                          -ankle_pitch.origin.xyz[2], -sole[2])
+            dims[side] = (
+                yaw.origin.xyz[1] * side.sign,
+                -roll.origin.xyz[2],
+                -knee.origin.xyz[2],
+                -ankle_pitch.origin.xyz[2],
+                -sole[2],
+            )
         if not np.allclose(dims[Side.LEFT], dims[Side.RIGHT]):
             raise ValueError("the legs are not mirror images of each other")
         hip_y, hip_z, thigh, shin, ankle = dims[Side.LEFT]
@@ -626,8 +640,14 @@ def stance_pose(legs: LegGeometry, trunk_height: float, foot_distance: float) ->
         raise ValueError(f"trunk_height {trunk_height} / foot_distance {foot_distance} is out of the leg's reach")
     knee = math.acos(cos_knee)
     hip_pitch = -math.atan2(legs.shin * math.sin(knee), legs.thigh + legs.shin * math.cos(knee))
-    angles = {"HipYaw": 0.0, "HipRoll": roll, "HipPitch": hip_pitch, "Knee": knee,
-              "AnklePitch": -(hip_pitch + knee), "AnkleRoll": -roll}
+    angles = {
+        "HipYaw": 0.0,
+        "HipRoll": roll,
+        "HipPitch": hip_pitch,
+        "Knee": knee,
+        "AnklePitch": -(hip_pitch + knee),
+        "AnkleRoll": -roll,
+    }
     pose = {}
     for side in (Side.LEFT, Side.RIGHT):
         for joint, angle in angles.items():
@@ -642,8 +662,13 @@ WALK_READY_TRUNK_HEIGHT = 0.3948
 WALK_READY_FOOT_DISTANCE = 0.1799
 # Arms hang with the elbows bent 36° forward (FACTS' elbow angle; the real shoulder's 75° is in
 # a frame we do not model, so our arms hang straight down from the shoulder).
-WALK_READY_UPPER_BODY = {"ShoulderPitch": 0.0, "ShoulderRoll": 0.0, "Elbow": -math.radians(36.0),
-                         "HeadPan": 0.0, "HeadTilt": 0.0}
+WALK_READY_UPPER_BODY = {
+    "ShoulderPitch": 0.0,
+    "ShoulderRoll": 0.0,
+    "Elbow": -math.radians(36.0),
+    "HeadPan": 0.0,
+    "HeadTilt": 0.0,
+}
 
 
 def wolfgang() -> RobotSpec:
@@ -662,80 +687,192 @@ def wolfgang() -> RobotSpec:
         Link(
             "torso",
             # COM 0.110 m above the base (FACTS); inertia tensor of the public URDF's torso.
-            Inertial(2.084, (0.0, 0.0, 0.110),
-                     (0.0183896, 0.0158772, 0.00780317, -6.80173e-05, -0.00140827, 0.000104074)),
+            Inertial(
+                2.084, (0.0, 0.0, 0.110), (0.0183896, 0.0158772, 0.00780317, -6.80173e-05, -0.00140827, 0.000104074)
+            ),
             (
                 Box((0.12, 0.15, 0.0825), Origin((0.0, 0.0, 0.04125))),  # hip servo bay
                 Box((0.15, 0.125, 0.115), Origin((0.0, 0.0, 0.14))),  # main body (FACTS)
             ),
             grey,
         ),
-        Link("neck", Inertial(0.148, (0.0, 0.0, 0.02), box_inertia(0.148, (0.04, 0.05, 0.04))),
-             (Cylinder(0.02, 0.04, Origin((0.0, 0.0, 0.02))),), dark),
-        Link("head", Inertial(0.301, (0.01, 0.0, 0.055), box_inertia(0.301, (0.09, 0.11, 0.10))),
-             (Sphere(0.055, Origin((0.01, 0.0, 0.06))),), light),
+        Link(
+            "neck",
+            Inertial(0.148, (0.0, 0.0, 0.02), box_inertia(0.148, (0.04, 0.05, 0.04))),
+            (Cylinder(0.02, 0.04, Origin((0.0, 0.0, 0.02))),),
+            dark,
+        ),
+        Link(
+            "head",
+            Inertial(0.301, (0.01, 0.0, 0.055), box_inertia(0.301, (0.09, 0.11, 0.10))),
+            (Sphere(0.055, Origin((0.01, 0.0, 0.06))),),
+            light,
+        ),
     ]
     joints: list[Joint] = [
-        Joint("HeadPan", "torso", "neck", (0, 0, 1), *_limits("HeadPan", Side.LEFT), UPPER_BODY_EFFORT,
-              UPPER_BODY_VELOCITY, scaled_servo(UPPER_BODY_EFFORT), Origin((0.0, 0.0, 0.2))),
-        Joint("HeadTilt", "neck", "head", (0, 1, 0), *_limits("HeadTilt", Side.LEFT), UPPER_BODY_EFFORT,
-              UPPER_BODY_VELOCITY, scaled_servo(UPPER_BODY_EFFORT), Origin((0.0, 0.0, 0.04))),
+        Joint(
+            "HeadPan",
+            "torso",
+            "neck",
+            (0, 0, 1),
+            *_limits("HeadPan", Side.LEFT),
+            UPPER_BODY_EFFORT,
+            UPPER_BODY_VELOCITY,
+            scaled_servo(UPPER_BODY_EFFORT),
+            Origin((0.0, 0.0, 0.2)),
+        ),
+        Joint(
+            "HeadTilt",
+            "neck",
+            "head",
+            (0, 1, 0),
+            *_limits("HeadTilt", Side.LEFT),
+            UPPER_BODY_EFFORT,
+            UPPER_BODY_VELOCITY,
+            scaled_servo(UPPER_BODY_EFFORT),
+            Origin((0.0, 0.0, 0.04)),
+        ),
     ]
     for side in (Side.LEFT, Side.RIGHT):
         s, p, lower = side.sign, side_prefix(side), side.value[0]  # +1/-1, "L"/"R", "l"/"r"
 
         def joint(name, parent, child, axis, xyz, effort, velocity):
-            return Joint(p + name, parent, child, axis, *_limits(name, side), effort, velocity,
-                         scaled_servo(effort), Origin(xyz))
+            return Joint(
+                p + name, parent, child, axis, *_limits(name, side), effort, velocity, scaled_servo(effort), Origin(xyz)
+            )
 
         # Arms: shoulder at the top corner of the torso, upper arm 0.144 m, forearm to the wrist 0.225 m.
         links += [
-            Link(f"{lower}_shoulder", Inertial(0.041, (0.0, s * 0.02, 0.0), box_inertia(0.041, (0.03, 0.04, 0.03))),
-                 (Box((0.03, 0.04, 0.03), Origin((0.0, s * 0.02, 0.0))),), dark),
-            Link(f"{lower}_upper_arm", Inertial(0.229, (0.0, 0.0, -0.07), box_inertia(0.229, (0.05, 0.05, 0.144))),
-                 (Capsule(0.025, 0.094, Origin((0.0, 0.0, -0.072))),), grey),
-            Link(f"{lower}_lower_arm", Inertial(0.208, (0.0, 0.0, -0.09), box_inertia(0.208, (0.04, 0.04, 0.2))),
-                 (Capsule(0.02, 0.165, Origin((0.0, 0.0, -0.1225))),), grey),
+            Link(
+                f"{lower}_shoulder",
+                Inertial(0.041, (0.0, s * 0.02, 0.0), box_inertia(0.041, (0.03, 0.04, 0.03))),
+                (Box((0.03, 0.04, 0.03), Origin((0.0, s * 0.02, 0.0))),),
+                dark,
+            ),
+            Link(
+                f"{lower}_upper_arm",
+                Inertial(0.229, (0.0, 0.0, -0.07), box_inertia(0.229, (0.05, 0.05, 0.144))),
+                (Capsule(0.025, 0.094, Origin((0.0, 0.0, -0.072))),),
+                grey,
+            ),
+            Link(
+                f"{lower}_lower_arm",
+                Inertial(0.208, (0.0, 0.0, -0.09), box_inertia(0.208, (0.04, 0.04, 0.2))),
+                (Capsule(0.02, 0.165, Origin((0.0, 0.0, -0.1225))),),
+                grey,
+            ),
         ]
         effort, velocity = UPPER_BODY_EFFORT, UPPER_BODY_VELOCITY
         joints += [
             joint("ShoulderPitch", "torso", f"{lower}_shoulder", (0, 1, 0), (0.0, s * 0.0765, 0.2), effort, velocity),
-            joint("ShoulderRoll", f"{lower}_shoulder", f"{lower}_upper_arm", (1, 0, 0), (0.0, s * 0.042, 0.0),
-                  effort, velocity),
+            joint(
+                "ShoulderRoll",
+                f"{lower}_shoulder",
+                f"{lower}_upper_arm",
+                (1, 0, 0),
+                (0.0, s * 0.042, 0.0),
+                effort,
+                velocity,
+            ),
             joint("Elbow", f"{lower}_upper_arm", f"{lower}_lower_arm", (0, 1, 0), (0.0, 0.0, -0.144), effort, velocity),
         ]
         # Legs: the pure LegGeometry chain.  The lower legs and feet collide with the other leg's.
         plate_z = -legs.ankle_to_sole + SIM_FOOT_THICKNESS / 2.0
         foot_mass = 0.268 + FOOT_CLEATS_MASS
         links += [
-            Link(f"{lower}_hip_1", Inertial(0.069, (0.0, 0.0, -0.02), box_inertia(0.069, (0.05, 0.04, 0.04))),
-                 (Box((0.05, 0.04, 0.03), Origin((0.0, 0.0, -0.015))),), dark),
-            Link(f"{lower}_hip_2", Inertial(0.320, (0.0, 0.0, -0.01), box_inertia(0.320, (0.06, 0.05, 0.07))),
-                 (Box((0.06, 0.05, 0.07), Origin((0.0, 0.0, -0.005))),), dark),
-            Link(f"{lower}_upper_leg", Inertial(0.242, (0.0, 0.0, -0.11), box_inertia(0.242, (0.05, 0.05, legs.thigh))),
-                 (Capsule(0.025, 0.10, Origin((0.0, 0.0, -legs.thigh / 2))),), grey),
-            Link(f"{lower}_lower_leg", Inertial(0.088, (0.0, 0.0, -0.06), box_inertia(0.088, (0.04, 0.04, legs.shin))),
-                 (Capsule(0.022, 0.10, Origin((0.0, 0.0, -legs.shin / 2)), self_collision=True),), grey),
-            Link(f"{lower}_ankle", Inertial(0.320, (0.0, 0.0, 0.0), box_inertia(0.320, (0.06, 0.05, 0.07))),
-                 (Box((0.06, 0.05, 0.06), Origin((0.0, 0.0, 0.005)), self_collision=True),), dark),
-            Link(f"{lower}_foot", Inertial(foot_mass, (0.0, 0.0, -0.035),
-                                           box_inertia(foot_mass, (0.154, 0.106, 0.03))),
-                 (Box((0.154, 0.106, SIM_FOOT_THICKNESS), Origin((0.0, 0.0, plate_z)), self_collision=True),), light),
+            Link(
+                f"{lower}_hip_1",
+                Inertial(0.069, (0.0, 0.0, -0.02), box_inertia(0.069, (0.05, 0.04, 0.04))),
+                (Box((0.05, 0.04, 0.03), Origin((0.0, 0.0, -0.015))),),
+                dark,
+            ),
+            Link(
+                f"{lower}_hip_2",
+                Inertial(0.320, (0.0, 0.0, -0.01), box_inertia(0.320, (0.06, 0.05, 0.07))),
+                (Box((0.06, 0.05, 0.07), Origin((0.0, 0.0, -0.005))),),
+                dark,
+            ),
+            Link(
+                f"{lower}_upper_leg",
+                Inertial(0.242, (0.0, 0.0, -0.11), box_inertia(0.242, (0.05, 0.05, legs.thigh))),
+                (Capsule(0.025, 0.10, Origin((0.0, 0.0, -legs.thigh / 2))),),
+                grey,
+            ),
+            Link(
+                f"{lower}_lower_leg",
+                Inertial(0.088, (0.0, 0.0, -0.06), box_inertia(0.088, (0.04, 0.04, legs.shin))),
+                (Capsule(0.022, 0.10, Origin((0.0, 0.0, -legs.shin / 2)), self_collision=True),),
+                grey,
+            ),
+            Link(
+                f"{lower}_ankle",
+                Inertial(0.320, (0.0, 0.0, 0.0), box_inertia(0.320, (0.06, 0.05, 0.07))),
+                (Box((0.06, 0.05, 0.06), Origin((0.0, 0.0, 0.005)), self_collision=True),),
+                dark,
+            ),
+            Link(
+                f"{lower}_foot",
+                Inertial(foot_mass, (0.0, 0.0, -0.035), box_inertia(foot_mass, (0.154, 0.106, 0.03))),
+                (Box((0.154, 0.106, SIM_FOOT_THICKNESS), Origin((0.0, 0.0, plate_z)), self_collision=True),),
+                light,
+            ),
         ]
         le, lv = LEG_EFFORT, LEG_VELOCITY
         joints += [
-            joint("HipYaw", "torso", f"{lower}_hip_1", (0, 0, 1), (0.0, s * legs.hip_offset_y, 0.0),
-                  le["HipYaw"], lv["HipYaw"]),
-            joint("HipRoll", f"{lower}_hip_1", f"{lower}_hip_2", (1, 0, 0), (0.0, 0.0, -legs.hip_offset_z),
-                  le["HipRoll"], lv["HipRoll"]),
-            joint("HipPitch", f"{lower}_hip_2", f"{lower}_upper_leg", (0, 1, 0), (0.0, 0.0, 0.0),
-                  le["HipPitch"], lv["HipPitch"]),
-            joint("Knee", f"{lower}_upper_leg", f"{lower}_lower_leg", (0, 1, 0), (0.0, 0.0, -legs.thigh),
-                  le["Knee"], lv["Knee"]),
-            joint("AnklePitch", f"{lower}_lower_leg", f"{lower}_ankle", (0, 1, 0), (0.0, 0.0, -legs.shin),
-                  le["AnklePitch"], lv["AnklePitch"]),
-            joint("AnkleRoll", f"{lower}_ankle", f"{lower}_foot", (1, 0, 0), (0.0, 0.0, 0.0),
-                  le["AnkleRoll"], lv["AnkleRoll"]),
+            joint(
+                "HipYaw",
+                "torso",
+                f"{lower}_hip_1",
+                (0, 0, 1),
+                (0.0, s * legs.hip_offset_y, 0.0),
+                le["HipYaw"],
+                lv["HipYaw"],
+            ),
+            joint(
+                "HipRoll",
+                f"{lower}_hip_1",
+                f"{lower}_hip_2",
+                (1, 0, 0),
+                (0.0, 0.0, -legs.hip_offset_z),
+                le["HipRoll"],
+                lv["HipRoll"],
+            ),
+            joint(
+                "HipPitch",
+                f"{lower}_hip_2",
+                f"{lower}_upper_leg",
+                (0, 1, 0),
+                (0.0, 0.0, 0.0),
+                le["HipPitch"],
+                lv["HipPitch"],
+            ),
+            joint(
+                "Knee",
+                f"{lower}_upper_leg",
+                f"{lower}_lower_leg",
+                (0, 1, 0),
+                (0.0, 0.0, -legs.thigh),
+                le["Knee"],
+                lv["Knee"],
+            ),
+            joint(
+                "AnklePitch",
+                f"{lower}_lower_leg",
+                f"{lower}_ankle",
+                (0, 1, 0),
+                (0.0, 0.0, -legs.shin),
+                le["AnklePitch"],
+                lv["AnklePitch"],
+            ),
+            joint(
+                "AnkleRoll",
+                f"{lower}_ankle",
+                f"{lower}_foot",
+                (1, 0, 0),
+                (0.0, 0.0, 0.0),
+                le["AnkleRoll"],
+                lv["AnkleRoll"],
+            ),
         ]
 
     walk_ready = stance_pose(legs, WALK_READY_TRUNK_HEIGHT, WALK_READY_FOOT_DISTANCE)
@@ -763,8 +900,10 @@ def wolfgang() -> RobotSpec:
         base_link="torso",
         links=tuple(links),
         joints=tuple(joints),
-        soles={"left": ("l_foot", (0.0, 0.0, -legs.ankle_to_sole)),
-               "right": ("r_foot", (0.0, 0.0, -legs.ankle_to_sole))},
+        soles={
+            "left": ("l_foot", (0.0, 0.0, -legs.ankle_to_sole)),
+            "right": ("r_foot", (0.0, 0.0, -legs.ankle_to_sole)),
+        },
         walk_ready=walk_ready,
     )
 

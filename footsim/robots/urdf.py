@@ -57,8 +57,9 @@ def _link(robot: ET.Element, link: Link) -> None:
     _origin(inertial, Origin(link.inertial.com))
     ET.SubElement(inertial, "mass", value=_fmt(link.inertial.mass))
     ixx, iyy, izz, ixy, ixz, iyz = link.inertial.inertia
-    ET.SubElement(inertial, "inertia", ixx=_fmt(ixx), ixy=_fmt(ixy), ixz=_fmt(ixz), iyy=_fmt(iyy),
-                  iyz=_fmt(iyz), izz=_fmt(izz))
+    ET.SubElement(
+        inertial, "inertia", ixx=_fmt(ixx), ixy=_fmt(ixy), ixz=_fmt(ixz), iyy=_fmt(iyy), iyz=_fmt(iyz), izz=_fmt(izz)
+    )
     index = 0
     for shape in link.shapes:
         for origin, tag, attrs in _primitives(shape):
@@ -89,8 +90,14 @@ def build_urdf(spec: RobotSpec) -> ET.Element:
         ET.SubElement(element, "child", link=joint.child)
         _origin(element, joint.origin)
         ET.SubElement(element, "axis", xyz=_fmt(*joint.axis))
-        ET.SubElement(element, "limit", lower=_fmt(joint.lower), upper=_fmt(joint.upper),
-                      effort=_fmt(joint.effort), velocity=_fmt(joint.velocity))
+        ET.SubElement(
+            element,
+            "limit",
+            lower=_fmt(joint.lower),
+            upper=_fmt(joint.upper),
+            effort=_fmt(joint.effort),
+            velocity=_fmt(joint.velocity),
+        )
         ET.SubElement(element, "dynamics", damping=_fmt(joint.servo.damping), friction=_fmt(joint.servo.frictionloss))
     for side in (Side.LEFT, Side.RIGHT):
         if side.value not in spec.soles:

@@ -44,8 +44,17 @@ class NavTaskConfig:
     success_bonus: float = 1.0  # reward per remaining step on success (thesis: 1, the maximum step reward)
 
     def __post_init__(self) -> None:
-        for key in ("success_distance", "success_angle", "distance_scale", "ray_range", "ray_scale", "imu_scale",
-                    "stability_scale", "path_hint_lookahead", "path_hint_clearance"):
+        for key in (
+            "success_distance",
+            "success_angle",
+            "distance_scale",
+            "ray_range",
+            "ray_scale",
+            "imu_scale",
+            "stability_scale",
+            "path_hint_lookahead",
+            "path_hint_clearance",
+        ):
             value = getattr(self, key)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"task.{key} must be a positive number, got {value!r}")
@@ -109,8 +118,9 @@ _pack_floats = struct.Struct("=17f").pack_into  # 17 floats into a float32 buffe
 _RAY_DIRECTIONS: dict[int, np.ndarray] = {}
 
 
-def observation_layout(obstacles: bool, n_rays: int, observe_imu: bool = False,
-                       path_hint: bool = False) -> tuple[tuple[str, int], ...]:
+def observation_layout(
+    obstacles: bool, n_rays: int, observe_imu: bool = False, path_hint: bool = False
+) -> tuple[tuple[str, int], ...]:
     """``(block, size)`` in observation order (see :func:`observation`)."""
     blocks = [("goal_and_actions", 17)]
     if obstacles:
@@ -138,7 +148,7 @@ def scene_arrays(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
     and passes them to :func:`observation` and :func:`reward_terms`.
     """
     circles = scene.circle_array
-    return circles, circles[:len(scene.obstacles)]  # the ball, if any, is the last row
+    return circles, circles[: len(scene.obstacles)]  # the ball, if any, is the last row
 
 
 def ray_distances(pose: Pose2D, obstacles: tuple[Obstacle, ...], n_rays: int, max_range: float) -> np.ndarray:
@@ -149,8 +159,9 @@ def ray_distances(pose: Pose2D, obstacles: tuple[Obstacle, ...], n_rays: int, ma
     """
     out = np.empty(int(n_rays))
     circles = kernels2d.circle_array([(o.x, o.y, o.r) for o in obstacles])
-    kernels2d.scan_rays(float(pose[0]), float(pose[1]), float(pose[2]), circles, _ray_directions(int(n_rays)),
-                        float(max_range), out)
+    kernels2d.scan_rays(
+        float(pose[0]), float(pose[1]), float(pose[2]), circles, _ray_directions(int(n_rays)), float(max_range), out
+    )
     return out
 
 
@@ -159,8 +170,9 @@ def nearest_obstacle_distance(pose: Pose2D, obstacles: tuple[Obstacle, ...]) -> 
     return _nearest_circle_distance(pose, tuple((o.x, o.y, o.r) for o in obstacles))
 
 
-def _nearest_circle_distance(pose: Pose2D, circles: tuple[tuple[float, float, float], ...],
-                             array: np.ndarray | None = None) -> float:
+def _nearest_circle_distance(
+    pose: Pose2D, circles: tuple[tuple[float, float, float], ...], array: np.ndarray | None = None
+) -> float:
     """Distance from ``pose`` to the nearest edge of ``circles`` (``array``: the same circles as
     :func:`footsim.kernels2d.circle_array`); inf without circles.  The kernel picks the circle,
     ``math.hypot`` gives the distance (the C library's ``hypot`` can differ in the last bit)."""
@@ -172,10 +184,16 @@ def _nearest_circle_distance(pose: Pose2D, circles: tuple[tuple[float, float, fl
     return math.hypot(ox - px, oy - py) - r
 
 
-def reward_terms(pose: Pose2D, scene: Scene, action, previous_action,
-                 features: tuple[float, float, float] | None = None,
-                 max_tilt: float | None = None, stability_scale: float = 0.2,
-                 arrays: tuple[np.ndarray, np.ndarray] | None = None) -> dict[str, float]:
+def reward_terms(
+    pose: Pose2D,
+    scene: Scene,
+    action,
+    previous_action,
+    features: tuple[float, float, float] | None = None,
+    max_tilt: float | None = None,
+    stability_scale: float = 0.2,
+    arrays: tuple[np.ndarray, np.ndarray] | None = None,
+) -> dict[str, float]:
     """The five thesis 5.5 reward terms, each in [0, 1]; with ``max_tilt`` (the largest trunk
     roll or pitch during the step, 3D) also ``stability = exp(-max_tilt / stability_scale)``.
 
@@ -212,8 +230,14 @@ def _continuity(action, previous_action) -> float:
     if len(a) == 6 and len(b) == 6:  # the env's case, unrolled: the same sum, left to right
         a0, a1, a2, a3, a4, a5 = a
         b0, b1, b2, b3, b4, b5 = b
-        return (exp(-3.0 * abs(a0 - b0)) + exp(-3.0 * abs(a1 - b1)) + exp(-3.0 * abs(a2 - b2))
-                + exp(-3.0 * abs(a3 - b3)) + exp(-3.0 * abs(a4 - b4)) + exp(-3.0 * abs(a5 - b5))) / 6
+        return (
+            exp(-3.0 * abs(a0 - b0))
+            + exp(-3.0 * abs(a1 - b1))
+            + exp(-3.0 * abs(a2 - b2))
+            + exp(-3.0 * abs(a3 - b3))
+            + exp(-3.0 * abs(a4 - b4))
+            + exp(-3.0 * abs(a5 - b5))
+        ) / 6
     total = 0
     for x, y in zip(a, b):
         total += exp(-3.0 * abs(x - y))
@@ -228,16 +252,22 @@ def weighted_reward(terms: dict[str, float], weights: dict[str, float]) -> float
     return float(total)
 
 
-def is_success(pose: Pose2D, goal: Pose2D, config: NavTaskConfig,
-               features: tuple[float, float, float] | None = None) -> bool:
+def is_success(
+    pose: Pose2D, goal: Pose2D, config: NavTaskConfig, features: tuple[float, float, float] | None = None
+) -> bool:
     d, alpha, _ = features if features is not None else goal_features(pose, goal)
     return d < config.success_distance and abs(alpha) < config.success_angle
 
 
 def observation(
-    believed: Pose2D, scene: Scene, previous_actions, config: NavTaskConfig,
-    features: tuple[float, float, float] | None = None, tilt: tuple[float, float, float] = (0.0, 0.0, 0.0),
-    hint: tuple[float, float] = (0.0, 1.0), arrays: tuple[np.ndarray, np.ndarray] | None = None,
+    believed: Pose2D,
+    scene: Scene,
+    previous_actions,
+    config: NavTaskConfig,
+    features: tuple[float, float, float] | None = None,
+    tilt: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    hint: tuple[float, float] = (0.0, 1.0),
+    arrays: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:
     """17-D (or 53-D with rays) observation from the pose the robot *believes* it has.
 
@@ -266,10 +296,20 @@ def observation(
     obs = np.empty(17 + n + len(options), dtype=np.float32)
     _pack_floats(obs, 0, *head, *a1, *a2)  # = obs[:17] = values (the same float32 rounding), a third of the cost
     circles = (arrays if arrays is not None else scene_arrays(scene))[0]
-    kernels2d.ray_observation(believed[0], believed[1], believed[2], circles, directions, config.ray_range,
-                              config.ray_scale, config.ray_miss, obs, 17)
+    kernels2d.ray_observation(
+        believed[0],
+        believed[1],
+        believed[2],
+        circles,
+        directions,
+        config.ray_range,
+        config.ray_scale,
+        config.ray_miss,
+        obs,
+        17,
+    )
     if options:
-        obs[17 + n:] = options
+        obs[17 + n :] = options
     return obs
 
 
@@ -288,7 +328,9 @@ class PathHint:
         points = np.array([[start.x, start.y], goal], dtype=float)
         obstacles = scene.all_obstacles
         if obstacles:
-            costmap = Costmap.from_obstacles(obstacles, [(start.x, start.y), goal], 0.05, float(config.path_hint_clearance))
+            costmap = Costmap.from_obstacles(
+                obstacles, [(start.x, start.y), goal], 0.05, float(config.path_hint_clearance)
+            )
             path = plan_path(costmap, (start.x, start.y), goal, "theta_star")
             if path is not None:
                 points = path.points
@@ -298,7 +340,7 @@ class PathHint:
 
     def bearing(self, pose: Pose2D) -> tuple[float, float]:
         """(sin, cos) of the lookahead point's bearing relative to the pose's heading."""
-        pts = self.points[self.index:]
+        pts = self.points[self.index :]
         self.index += int(np.argmin(np.hypot(pts[:, 0] - pose.x, pts[:, 1] - pose.y)))
         k = min(self.index + int(round(self.lookahead / self.spacing)), len(self.points) - 1)
         dx, dy = self.points[k, 0] - pose.x, self.points[k, 1] - pose.y

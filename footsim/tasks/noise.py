@@ -87,8 +87,15 @@ class NoiseModel:
 
     def believe(self, true_pose: Pose2D, rng: np.random.Generator) -> Pose2D:
         """The pose the robot believes it has this step (call once per step, after :meth:`reset`)."""
-        if not (self.sigma_x > 0 or self.sigma_y > 0 or self.sigma_theta > 0 or self.bias_sigma_x > 0
-                or self.bias_sigma_y > 0 or self.bias_sigma_theta > 0 or self.delay_steps > 0):
+        if not (
+            self.sigma_x > 0
+            or self.sigma_y > 0
+            or self.sigma_theta > 0
+            or self.bias_sigma_x > 0
+            or self.bias_sigma_y > 0
+            or self.bias_sigma_theta > 0
+            or self.delay_steps > 0
+        ):
             return true_pose  # not self.active, written out: this runs every env step
         pose = true_pose
         if self.biased:

@@ -17,10 +17,11 @@ import math
 import os
 import sys
 import tempfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
-from typing import Callable, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
@@ -48,9 +49,14 @@ class Scene:
         if not isinstance(self.goal, Pose2D):
             object.__setattr__(self, "goal", Pose2D.of(*_finite_list(self.goal, 3, "Scene.goal")))
         if type(self.obstacles) is not tuple or not all(type(o) is Obstacle for o in self.obstacles):
-            object.__setattr__(self, "obstacles", tuple(
-                o if type(o) is Obstacle else Obstacle(*_circle(o, f"Scene.obstacles[{k}]"))
-                for k, o in enumerate(self.obstacles)))
+            object.__setattr__(
+                self,
+                "obstacles",
+                tuple(
+                    o if type(o) is Obstacle else Obstacle(*_circle(o, f"Scene.obstacles[{k}]"))
+                    for k, o in enumerate(self.obstacles)
+                ),
+            )
         if self.ball is not None and type(self.ball) is not Obstacle:
             object.__setattr__(self, "ball", Obstacle(*_circle(self.ball, "Scene.ball")))
 
@@ -85,7 +91,7 @@ class Scene:
         }
 
     @classmethod
-    def from_dict(cls, data: dict, index: int = 0) -> "Scene":
+    def from_dict(cls, data: dict, index: int = 0) -> Scene:
         where = f"scene {index}"
         if not isinstance(data, dict):
             raise ValueError(f"{where}: expected an object with 'goal', 'obstacles', 'ball', got {type(data).__name__}")
@@ -143,8 +149,15 @@ class SceneSampler:
     robot_radius: float = 0.2
 
     def __post_init__(self) -> None:
-        positive = ("goal_sigma_xy", "goal_sigma_theta", "obstacle_offset_sigma", "obstacle_radius_min",
-                    "obstacle_radius_max", "ball_radius", "robot_radius")
+        positive = (
+            "goal_sigma_xy",
+            "goal_sigma_theta",
+            "obstacle_offset_sigma",
+            "obstacle_radius_min",
+            "obstacle_radius_max",
+            "ball_radius",
+            "robot_radius",
+        )
         for key in positive:
             value = getattr(self, key)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
@@ -224,11 +237,13 @@ def atomic_save(save: Callable[[str], None], path: str | os.PathLike, suffix: st
 
 def atomic_write_text(path: str | os.PathLike, text: str) -> None:
     """``text`` into ``path`` atomically (``atomic_save``), synced to disk before the move."""
+
     def save(tmp: str) -> None:
         with open(tmp, "w") as fh:
             fh.write(text)
             fh.flush()
             os.fsync(fh.fileno())
+
     atomic_save(save, path)
 
 
@@ -268,8 +283,11 @@ def parse_kv_args(argv: list[str], allowed: dict[str, object], command: str) -> 
 
 def main(argv: list[str] | None = None) -> None:
     """``footsim-scenes out=FILE n=500 seed=S obstacles=true|false``."""
-    args = parse_kv_args(sys.argv[1:] if argv is None else argv,
-                         {"out": None, "n": "500", "seed": "0", "obstacles": "false"}, "footsim-scenes")
+    args = parse_kv_args(
+        sys.argv[1:] if argv is None else argv,
+        {"out": None, "n": "500", "seed": "0", "obstacles": "false"},
+        "footsim-scenes",
+    )
     if not args["out"]:
         raise SystemExit("footsim-scenes: out=FILE is required")
     try:

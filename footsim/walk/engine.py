@@ -180,8 +180,9 @@ def _overlap_bands(x: np.ndarray, theta: np.ndarray, half_l: float, half_w: floa
     kernel ``FootstepGeometry.landing`` uses (:func:`footsim.kernels2d.overlap_band`), looped in
     compiled code: the numpy version of the four axes cost more than the rest of a double step."""
     lo, hi = np.empty(x.shape), np.empty(x.shape)
-    kernels2d.overlap_bands(np.ascontiguousarray(x, dtype=float), np.cos(theta), np.sin(theta), float(half_l),
-                            float(half_w), lo, hi)
+    kernels2d.overlap_bands(
+        np.ascontiguousarray(x, dtype=float), np.cos(theta), np.sin(theta), float(half_l), float(half_w), lo, hi
+    )
     return lo, hi
 
 
@@ -307,7 +308,9 @@ class QuinticWalk:
             # Trunk-only half cycle in right support (phase 0.5 → 1), feet still.
             duration = self.start_ticks * self.control_dt
             left_in_right = feet.right.relative(feet.left)
-            plans.append(self._plan(WalkState.START_MOVEMENT, Side.RIGHT, feet, left_in_right, left_in_right, duration, 0.5, 0.5))
+            plans.append(
+                self._plan(WalkState.START_MOVEMENT, Side.RIGHT, feet, left_in_right, left_in_right, duration, 0.5, 0.5)
+            )
             first_kind = WalkState.START_STEP
         else:
             first_kind = WalkState.WALKING
@@ -412,7 +415,9 @@ class QuinticWalk:
         p = self.params
         half = self.half_period
         period = 2.0 * half
-        pitch = p.trunk_pitch + p.trunk_pitch_p_coef_forward * landing.x + p.trunk_pitch_p_coef_turn * abs(landing.theta)
+        pitch = (
+            p.trunk_pitch + p.trunk_pitch_p_coef_forward * landing.x + p.trunk_pitch_p_coef_turn * abs(landing.theta)
+        )
         half_offset_y = 0.5 * landing.y
         at_support = np.array(
             [

@@ -30,7 +30,7 @@ class Side(str, Enum):
     RIGHT = "right"
 
     @property
-    def other(self) -> "Side":
+    def other(self) -> Side:
         return Side.RIGHT if self is Side.LEFT else Side.LEFT
 
     @property
@@ -104,7 +104,7 @@ class DoubleStep(NamedTuple):
     second: Footstep  # left foot
 
     @classmethod
-    def from_action(cls, action, limits: StepLimits) -> "DoubleStep":
+    def from_action(cls, action, limits: StepLimits) -> DoubleStep:
         """Scale a 6-D action in [-1, 1] by the step limits.
 
         Non-finite values raise ``ValueError``; finite values outside [-1, 1] are clipped.
@@ -112,14 +112,15 @@ class DoubleStep(NamedTuple):
         return cls.from_unit(action_values(action), limits)
 
     @classmethod
-    def from_unit(cls, v: list[float], limits: StepLimits) -> "DoubleStep":
+    def from_unit(cls, v: list[float], limits: StepLimits) -> DoubleStep:
         """Scale 6 already validated and clipped values (see :func:`action_values`)."""
         lx, ly, lt = limits.x, limits.y, limits.theta
-        return _new(cls, (_new(Footstep, (v[0] * lx, v[1] * ly, v[2] * lt)),
-                          _new(Footstep, (v[3] * lx, v[4] * ly, v[5] * lt))))
+        return _new(
+            cls, (_new(Footstep, (v[0] * lx, v[1] * ly, v[2] * lt)), _new(Footstep, (v[3] * lx, v[4] * ly, v[5] * lt)))
+        )
 
     @classmethod
-    def from_array(cls, values) -> "DoubleStep":
+    def from_array(cls, values) -> DoubleStep:
         v = [float(x) for x in np.asarray(values, dtype=float).reshape(6)]
         return cls(Footstep(*v[:3]), Footstep(*v[3:]))
 
@@ -138,7 +139,7 @@ class FeetState(NamedTuple):
     def foot(self, side: Side) -> Pose2D:
         return self.left if side is Side.LEFT else self.right
 
-    def with_foot(self, side: Side, pose: Pose2D) -> "FeetState":
+    def with_foot(self, side: Side, pose: Pose2D) -> FeetState:
         return FeetState(pose, self.right) if side is Side.LEFT else FeetState(self.left, pose)
 
     @property
@@ -160,8 +161,7 @@ def _overlap_band_y_reference(x: float, theta: float, half_l: float, half_w: flo
     c, s = math.cos(theta), math.sin(theta)
     lo, hi = -math.inf, math.inf
     for nx, ny in ((1.0, 0.0), (0.0, 1.0), (c, s), (-s, c)):
-        reach = (half_l * abs(nx) + half_w * abs(ny)
-                 + half_l * abs(nx * c + ny * s) + half_w * abs(-nx * s + ny * c))
+        reach = half_l * abs(nx) + half_w * abs(ny) + half_l * abs(nx * c + ny * s) + half_w * abs(-nx * s + ny * c)
         if abs(ny) < 1e-12:
             if abs(nx * x) > reach:
                 return None
@@ -193,14 +193,22 @@ class FootstepGeometry:
         if self.min_foot_gap < 0:
             raise ValueError(f"FootstepGeometry.min_foot_gap must be >= 0, got {self.min_foot_gap!r}")
         # Derived constants of the hot path (the dataclass is frozen: set once here).
-        object.__setattr__(self, "_half_gapped", (0.5 * (self.foot_length + self.min_foot_gap),
-                                                  0.5 * (self.foot_width + self.min_foot_gap)))
+        object.__setattr__(
+            self,
+            "_half_gapped",
+            (0.5 * (self.foot_length + self.min_foot_gap), 0.5 * (self.foot_width + self.min_foot_gap)),
+        )
         # For the compiled placement (footsim.kernels2d.land): the limits, the foot distance, the
         # distance beyond which the feet can't overlap (two circumradii) and the grown half plate.
         clear = math.hypot(self.foot_length + self.min_foot_gap, self.foot_width + self.min_foot_gap)
-        object.__setattr__(self, "kernel_params", np.array(
-            [self.limits.x, self.limits.y, self.limits.theta, self.foot_distance, clear, *self._half_gapped],
-            dtype=np.float64))
+        object.__setattr__(
+            self,
+            "kernel_params",
+            np.array(
+                [self.limits.x, self.limits.y, self.limits.theta, self.foot_distance, clear, *self._half_gapped],
+                dtype=np.float64,
+            ),
+        )
         # Every 2D episode starts standing at the origin (immutable, so shared).
         object.__setattr__(self, "_feet_at_origin", self._stance(_ORIGIN))
         # The resting pose must be interference-free at any allowed turn, or the lateral
@@ -239,10 +247,14 @@ class FootstepGeometry:
         of the overlap band — the foot–foot interference that makes inward steps shorter.
         """
         left = flying is Side.LEFT
-        x, y, theta, interfered = kernels2d.land(left, float(step[0]), float(step[1]), float(step[2]),
-                                                 self.kernel_params)
-        return Pose2D(x, (self.foot_distance if left else -self.foot_distance) + y, theta), \
-            Footstep(x, y, theta), interfered
+        x, y, theta, interfered = kernels2d.land(
+            left, float(step[0]), float(step[1]), float(step[2]), self.kernel_params
+        )
+        return (
+            Pose2D(x, (self.foot_distance if left else -self.foot_distance) + y, theta),
+            Footstep(x, y, theta),
+            interfered,
+        )
 
     def execute(self, feet: FeetState, double_step: DoubleStep, perturb=None):
         """Place both footsteps of a double step.
@@ -256,18 +268,27 @@ class FootstepGeometry:
         first, second = double_step
         left, g = feet[0], self.kernel_params
         if perturb is None:  # both footsteps in one call
-            return placed_double_step(feet[0], kernels2d.place_double_step(
-                left[0], left[1], left[2], first[0], first[1], first[2], second[0], second[1], second[2], g))
+            return placed_double_step(
+                feet[0],
+                kernels2d.place_double_step(
+                    left[0], left[1], left[2], first[0], first[1], first[2], second[0], second[1], second[2], g
+                ),
+            )
         # the next step starts from where the perturbed foot really is
         rx, ry, rt, x1, y1, t1, hit_first = kernels2d.place_footstep(
-            False, left[0], left[1], left[2], first[0], first[1], first[2], g)
+            False, left[0], left[1], left[2], first[0], first[1], first[2], g
+        )
         right = perturb(_new(Pose2D, (rx, ry, rt)))
         lx, ly, lt, x2, y2, t2, hit_second = kernels2d.place_footstep(
-            True, right[0], right[1], right[2], second[0], second[1], second[2], g)
+            True, right[0], right[1], right[2], second[0], second[1], second[2], g
+        )
         left = perturb(_new(Pose2D, (lx, ly, lt)))
-        return (_new(FeetState, (feet[0], right)), _new(FeetState, (left, right)),
-                _new(DoubleStep, (_new(Footstep, (x1, y1, t1)), _new(Footstep, (x2, y2, t2)))),
-                int(hit_first) + int(hit_second))
+        return (
+            _new(FeetState, (feet[0], right)),
+            _new(FeetState, (left, right)),
+            _new(DoubleStep, (_new(Footstep, (x1, y1, t1)), _new(Footstep, (x2, y2, t2)))),
+            int(hit_first) + int(hit_second),
+        )
 
 
 def placed_double_step(left_before: Pose2D, placed) -> tuple[FeetState, FeetState, DoubleStep, int]:
@@ -277,9 +298,12 @@ def placed_double_step(left_before: Pose2D, placed) -> tuple[FeetState, FeetStat
     steps)``."""
     rx, ry, rt, x1, y1, t1, hit_first, lx, ly, lt, x2, y2, t2, hit_second = placed[:14]
     right = _new(Pose2D, (rx, ry, rt))
-    return (_new(FeetState, (left_before, right)), _new(FeetState, (_new(Pose2D, (lx, ly, lt)), right)),
-            _new(DoubleStep, (_new(Footstep, (x1, y1, t1)), _new(Footstep, (x2, y2, t2)))),
-            int(hit_first) + int(hit_second))
+    return (
+        _new(FeetState, (left_before, right)),
+        _new(FeetState, (_new(Pose2D, (lx, ly, lt)), right)),
+        _new(DoubleStep, (_new(Footstep, (x1, y1, t1)), _new(Footstep, (x2, y2, t2)))),
+        int(hit_first) + int(hit_second),
+    )
 
 
 _new = tuple.__new__  # NamedTuple construction without the Python-level __new__

@@ -124,7 +124,9 @@ def leg_fk(q, side, leg: LegGeometry = LegGeometry()) -> tuple[np.ndarray, np.nd
     n = q.shape[0]
     down = lambda length: np.broadcast_to(np.array([0.0, 0.0, -length]), (n, 3))  # noqa: E731
     R = _rot_z(q[:, 0])
-    pos = np.broadcast_to(np.array([0.0, sign * leg.hip_offset_y, 0.0]), (n, 3)) + np.einsum("nij,nj->ni", R, down(leg.hip_offset_z))
+    pos = np.broadcast_to(np.array([0.0, sign * leg.hip_offset_y, 0.0]), (n, 3)) + np.einsum(
+        "nij,nj->ni", R, down(leg.hip_offset_z)
+    )
     R = R @ _rot_x(q[:, 1]) @ _rot_y(q[:, 2])
     pos = pos + np.einsum("nij,nj->ni", R, down(leg.thigh))
     R = R @ _rot_y(q[:, 3])
@@ -231,8 +233,13 @@ def leg_ik(foot_pos, foot_rpy, side, leg: LegGeometry = LegGeometry(), limits=No
 # --- both legs along a trajectory, compiled ----------------------------------------------------
 
 
-def legs_ik(trunk: np.ndarray, left: np.ndarray, right: np.ndarray, leg: LegGeometry = LegGeometry(),
-            limits: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def legs_ik(
+    trunk: np.ndarray,
+    left: np.ndarray,
+    right: np.ndarray,
+    leg: LegGeometry = LegGeometry(),
+    limits: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
     """Joint targets of both legs for trunk and sole poses ``(6, n)`` (x, y, z, roll, pitch, yaw;
     rpy as ``Rz Ry Rx``) in one common frame: the walk engine's IK over a whole double step.
 
@@ -246,9 +253,20 @@ def legs_ik(trunk: np.ndarray, left: np.ndarray, right: np.ndarray, leg: LegGeom
     n = trunk.shape[1]
     joints, reachable = np.empty((n, 12)), np.empty(n, dtype=np.bool_)
     lim = np.zeros((12, 2)) if limits is None else np.ascontiguousarray(limits, dtype=float)
-    _legs_ik(np.ascontiguousarray(trunk, dtype=float), np.ascontiguousarray(left, dtype=float),
-             np.ascontiguousarray(right, dtype=float), leg.hip_offset_y, leg.hip_offset_z, leg.thigh, leg.shin,
-             leg.ankle_to_sole, lim, limits is not None, joints, reachable)
+    _legs_ik(
+        np.ascontiguousarray(trunk, dtype=float),
+        np.ascontiguousarray(left, dtype=float),
+        np.ascontiguousarray(right, dtype=float),
+        leg.hip_offset_y,
+        leg.hip_offset_z,
+        leg.thigh,
+        leg.shin,
+        leg.ankle_to_sole,
+        lim,
+        limits is not None,
+        joints,
+        reachable,
+    )
     return joints, reachable
 
 
@@ -258,9 +276,17 @@ def _rpy_matrix(roll, pitch, yaw):
     cr, sr = math.cos(roll), math.sin(roll)
     cp, sp = math.cos(pitch), math.sin(pitch)
     cy, sy = math.cos(yaw), math.sin(yaw)
-    return (cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr,
-            sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr,
-            -sp, cp * sr, cp * cr)
+    return (
+        cy * cp,
+        cy * sp * sr - sy * cr,
+        cy * sp * cr + sy * sr,
+        sy * cp,
+        sy * sp * sr + cy * cr,
+        sy * sp * cr - cy * sr,
+        -sp,
+        cp * sr,
+        cp * cr,
+    )
 
 
 @_compiled
@@ -305,7 +331,9 @@ def _legs_ik(trunk, left, right, hip_y, hip_z, L1, L2, a2s, limits, use_limits, 
             cos_knee = (vx * vx + vy * vy + vz * vz - (L1 * L1 + L2 * L2)) / (2.0 * L1 * L2)
             ok = ok and abs(cos_knee) <= 1.0
             knee = math.acos(min(max(cos_knee, -1.0), 1.0))
-            ankle_pitch = math.atan2(-L1 * math.sin(knee), L1 * math.cos(knee) + L2) - math.atan2(vx, math.hypot(vy, vz))
+            ankle_pitch = math.atan2(-L1 * math.sin(knee), L1 * math.cos(knee) + L2) - math.atan2(
+                vx, math.hypot(vy, vz)
+            )
             car, sar = math.cos(ankle_roll), math.sin(ankle_roll)
             b = knee + ankle_pitch
             cb, sb = math.cos(b), math.sin(b)

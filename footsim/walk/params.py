@@ -72,7 +72,7 @@ class WalkParams:
         return 0.5 / self.freq
 
     @classmethod
-    def from_mapping(cls, mapping) -> "WalkParams":
+    def from_mapping(cls, mapping) -> WalkParams:
         """Build from a dict / DictConfig, naming any unknown key."""
         known = {f.name for f in fields(cls)}
         data = dict(mapping)

@@ -28,8 +28,13 @@ def concatenate(trajectories: list[WalkTrajectory]) -> dict[str, np.ndarray]:
     return {k: np.concatenate([getattr(tr, k) for tr in trajectories]) for k in keys}
 
 
-def simulate(orders: list[DoubleStep], stop: bool = True, params: WalkParams | None = None,
-             limits: StepLimits | None = None, control_dt: float = 0.002) -> tuple[QuinticWalk, list[WalkTrajectory]]:
+def simulate(
+    orders: list[DoubleStep],
+    stop: bool = True,
+    params: WalkParams | None = None,
+    limits: StepLimits | None = None,
+    control_dt: float = 0.002,
+) -> tuple[QuinticWalk, list[WalkTrajectory]]:
     params = params or WalkParams()
     geometry = FootstepGeometry(limits or StepLimits(), foot_distance=params.foot_distance)
     engine = QuinticWalk(params, geometry, control_dt=control_dt)
@@ -118,13 +123,19 @@ def main(argv: list[str] | None = None) -> None:
         dt = float(args["dt"])
         stop = {"true": True, "false": False}[args["stop"].lower()]
         params = WalkParams()
-        geometry_probe = QuinticWalk(params, FootstepGeometry(StepLimits(), foot_distance=params.foot_distance), control_dt=dt)
+        geometry_probe = QuinticWalk(
+            params, FootstepGeometry(StepLimits(), foot_distance=params.foot_distance), control_dt=dt
+        )
         if args["vel"]:
             vx, vy, omega = (float(v) for v in args["vel"].split(","))
             orders = [geometry_probe.footsteps_from_velocity(vx, vy, omega)]
             title = f"velocity order vx={vx} vy={vy} ω={omega}"
         else:
-            orders = [DoubleStep.from_array([float(v) for v in chunk.split(",")]) for chunk in args["steps"].split(";") if chunk]
+            orders = [
+                DoubleStep.from_array([float(v) for v in chunk.split(",")])
+                for chunk in args["steps"].split(";")
+                if chunk
+            ]
             title = "double steps " + "; ".join(args["steps"].split(";"))
         if repeats < 1 or not orders:
             raise ValueError("need at least one double step and n >= 1")

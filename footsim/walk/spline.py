@@ -12,8 +12,8 @@ in one vectorised call: the walk engine evaluates a whole half step this way.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -33,7 +33,9 @@ def quintic_coefficients(p0, v0, a0, p1, v1, a1, duration) -> np.ndarray:
 
     All arguments broadcast against each other; the result has shape ``broadcast + (6,)``.
     """
-    p0, v0, a0, p1, v1, a1, T = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (p0, v0, a0, p1, v1, a1, duration)))
+    p0, v0, a0, p1, v1, a1, T = np.broadcast_arrays(
+        *(np.asarray(x, dtype=float) for x in (p0, v0, a0, p1, v1, a1, duration))
+    )
     if np.any(T <= 0.0):
         raise ValueError("a quintic segment needs a positive duration")
     T2 = T * T
@@ -65,9 +67,11 @@ def _quintic_high(dp, v0, a0, v1, a1, T):
     (``c0, c1, c2`` are p0, v0, a0 / 2): :func:`quintic_coefficients` on scalars."""
     T2 = T * T
     T3 = T2 * T
-    return ((20.0 * dp - (8.0 * v1 + 12.0 * v0) * T - (3.0 * a0 - a1) * T2) / (2.0 * T3),
-            (-30.0 * dp + (14.0 * v1 + 16.0 * v0) * T + (3.0 * a0 - 2.0 * a1) * T2) / (2.0 * T3 * T),
-            (12.0 * dp - 6.0 * (v1 + v0) * T - (a0 - a1) * T2) / (2.0 * T3 * T2))
+    return (
+        (20.0 * dp - (8.0 * v1 + 12.0 * v0) * T - (3.0 * a0 - a1) * T2) / (2.0 * T3),
+        (-30.0 * dp + (14.0 * v1 + 16.0 * v0) * T + (3.0 * a0 - 2.0 * a1) * T2) / (2.0 * T3 * T),
+        (12.0 * dp - 6.0 * (v1 + v0) * T - (a0 - a1) * T2) / (2.0 * T3 * T2),
+    )
 
 
 _quintic_high_python = getattr(_quintic_high, "py_func", _quintic_high)  # NUMBA_DISABLE_JIT: the function itself
@@ -111,7 +115,7 @@ class QuinticSegment:
     duration: float
 
     @classmethod
-    def from_boundary(cls, start: Sequence[float], end: Sequence[float], duration: float) -> "QuinticSegment":
+    def from_boundary(cls, start: Sequence[float], end: Sequence[float], duration: float) -> QuinticSegment:
         """``start`` and ``end`` are ``(pos, vel, acc)``."""
         (p0, v0, a0), (p1, v1, a1) = start, end
         return cls(quintic_coefficients(p0, v0, a0, p1, v1, a1, duration), float(duration))
@@ -229,8 +233,17 @@ class PiecewiseQuintic:
         t = np.atleast_1d(t)
         times = np.ascontiguousarray(t.reshape(-1, t.shape[-1]))  # (1, n): the same times on every channel
         out = np.empty((self.n_channels, times.shape[1]))
-        _sample_positions(self._coefficients, self._segment_start, self._breaks, self._offsets[:, 0],
-                          self._last_column[:, 0], self._query_low, self._query_high, times, out)
+        _sample_positions(
+            self._coefficients,
+            self._segment_start,
+            self._breaks,
+            self._offsets[:, 0],
+            self._last_column[:, 0],
+            self._query_low,
+            self._query_high,
+            times,
+            out,
+        )
         return out
 
     def evaluate(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -241,7 +254,7 @@ class PiecewiseQuintic:
     def state(self, t: float) -> np.ndarray:
         """``(channels, 3)``: position, velocity, acceleration of every channel at one time."""
         c, tau = self._locate(np.array([float(t)]))
-        powers = tau ** _POWERS  # (channels, 6): tau^0 .. tau^5
+        powers = tau**_POWERS  # (channels, 6): tau^0 .. tau^5
         out = np.empty((c.shape[1], 3))
         c = c[:, :, 0].T  # (channels, 6)
         out[:, 0] = (c * powers).sum(axis=1)
@@ -262,8 +275,14 @@ def _sample_positions(coefficients, segment_start, breaks, offsets, last_column,
             query = min(max(t, low), high) + offsets[ch]  # clamped into the channel's band
             column = min(np.searchsorted(breaks, query, side="right"), last_column[ch])
             tau = t - segment_start[column]
-            out[ch, i] = coefficients[0, column] + tau * (coefficients[1, column] + tau * (coefficients[2, column] + tau * (
-                coefficients[3, column] + tau * (coefficients[4, column] + tau * coefficients[5, column]))))
+            out[ch, i] = coefficients[0, column] + tau * (
+                coefficients[1, column]
+                + tau
+                * (
+                    coefficients[2, column]
+                    + tau * (coefficients[3, column] + tau * (coefficients[4, column] + tau * coefficients[5, column]))
+                )
+            )
 
 
 @_compiled
@@ -301,8 +320,10 @@ def _segment_tables(data, n_segments, coefficients, segment_start, breaks):
             coefficients[1, column] = v0
             coefficients[2, column] = 0.5 * a0
             coefficients[3, column], coefficients[4, column], coefficients[5, column] = _quintic_high(
-                p1 - p0, v0, a0, v1, a1, T)
+                p1 - p0, v0, a0, v1, a1, T
+            )
     return 0, t_min, span
+
 
 @_compiled
 def _query_frame(n_segments, n_seg_max, t_min, span):

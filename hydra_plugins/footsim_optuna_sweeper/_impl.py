@@ -25,12 +25,18 @@ import logging
 import math
 import os
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Dict, List, Optional, Sequence, Tuple
+from typing import Any
 
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.core.override_parser.types import (
-    ChoiceSweep, IntervalSweep, Override, QuotedString, RangeSweep, Transformer, escape_special_characters,
+    IntervalSweep,
+    Override,
+    QuotedString,
+    RangeSweep,
+    Transformer,
+    escape_special_characters,
 )
 from hydra.core.plugins import Plugins
 from hydra.core.utils import JobReturn, JobStatus
@@ -106,10 +112,10 @@ def format_value(value: Any) -> str:
     return escape_special_characters(str(value))
 
 
-def split_arguments(overrides: Sequence[Override]) -> Tuple[Dict[str, BaseDistribution], Dict[str, str]]:
+def split_arguments(overrides: Sequence[Override]) -> tuple[dict[str, BaseDistribution], dict[str, str]]:
     """(search space, fixed overrides); a later override of the same key replaces an earlier one."""
-    space: Dict[str, BaseDistribution] = {}
-    fixed: Dict[str, str] = {}
+    space: dict[str, BaseDistribution] = {}
+    fixed: dict[str, str] = {}
     for override in overrides:
         key = override.get_key_element()
         space.pop(key, None)
@@ -133,9 +139,18 @@ def _atomic_write(path: Path, text: str) -> None:
 
 # -- the sweeper -------------------------------------------------------------------------------
 class OptunaSweeperImpl:
-    def __init__(self, direction: Any = "maximize", study_name: str = "footsim", storage: Optional[str] = None,
-                 n_trials: int = 20, n_jobs: int = 1, sampler: Any = None, params: Optional[dict] = None,
-                 retry_interrupted: bool = True, user_attrs_file: Optional[str] = "eval/summary.json") -> None:
+    def __init__(
+        self,
+        direction: Any = "maximize",
+        study_name: str = "footsim",
+        storage: str | None = None,
+        n_trials: int = 20,
+        n_jobs: int = 1,
+        sampler: Any = None,
+        params: dict | None = None,
+        retry_interrupted: bool = True,
+        user_attrs_file: str | None = "eval/summary.json",
+    ) -> None:
         if isinstance(direction, (list, tuple, ListConfig)):
             self.directions = [str(d) for d in direction]
         else:
@@ -150,17 +165,20 @@ class OptunaSweeperImpl:
         self.study_name, self.storage = str(study_name), storage
         self.n_trials, self.n_jobs = int(n_trials), int(n_jobs)
         self.sampler_cfg = sampler
-        self.params = OmegaConf.to_container(params, resolve=True) if isinstance(params, DictConfig) else dict(params or {})
+        self.params = (
+            OmegaConf.to_container(params, resolve=True) if isinstance(params, DictConfig) else dict(params or {})
+        )
         self.retry_interrupted = bool(retry_interrupted)
         self.user_attrs_file = user_attrs_file
-        self.config: Optional[DictConfig] = None
-        self.hydra_context: Optional[HydraContext] = None
+        self.config: DictConfig | None = None
+        self.hydra_context: HydraContext | None = None
         self.launcher = None
 
     def setup(self, *, hydra_context: HydraContext, task_function: TaskFunction, config: DictConfig) -> None:
         self.config, self.hydra_context = config, hydra_context
         self.launcher = Plugins.instance().instantiate_launcher(
-            config=config, hydra_context=hydra_context, task_function=task_function)
+            config=config, hydra_context=hydra_context, task_function=task_function
+        )
 
     # -- pieces ---------------------------------------------------------------------------------
     def _sampler(self, n_existing: int) -> optuna.samplers.BaseSampler:
@@ -181,10 +199,10 @@ class OptunaSweeperImpl:
             raise ValueError(f"{_where('sampler')} must build an optuna sampler, got {type(sampler).__name__}")
         return sampler
 
-    def _storage_url(self) -> Optional[str]:
+    def _storage_url(self) -> str | None:
         url = self.storage
         if url and url.startswith("sqlite:///"):
-            Path(url[len("sqlite:///"):]).expanduser().parent.mkdir(parents=True, exist_ok=True)
+            Path(url[len("sqlite:///") :]).expanduser().parent.mkdir(parents=True, exist_ok=True)
         return url or None
 
     def _study(self) -> optuna.Study:
@@ -192,12 +210,19 @@ class OptunaSweeperImpl:
         n_existing = 0
         if url is not None and self.study_name in optuna.study.get_all_study_names(storage=url):
             n_existing = len(optuna.load_study(study_name=self.study_name, storage=url).trials)
-        study = optuna.create_study(study_name=self.study_name, storage=url, sampler=self._sampler(n_existing),
-                                    directions=self.directions, load_if_exists=True)
+        study = optuna.create_study(
+            study_name=self.study_name,
+            storage=url,
+            sampler=self._sampler(n_existing),
+            directions=self.directions,
+            load_if_exists=True,
+        )
         found = [d.name.lower() for d in study.directions]
         if found != self.directions:
-            raise ValueError(f"{_where('direction')}={self.directions} but the stored study {self.study_name!r} "
-                             f"optimizes {found}; use another study_name or storage")
+            raise ValueError(
+                f"{_where('direction')}={self.directions} but the stored study {self.study_name!r} "
+                f"optimizes {found}; use another study_name or storage"
+            )
         return study
 
     @staticmethod
@@ -219,11 +244,14 @@ class OptunaSweeperImpl:
                 study.enqueue_trial(t.params, user_attrs={"retry_of": t.number})
 
     def _finished(self, study: optuna.Study) -> int:
-        return sum(1 for t in study.get_trials(deepcopy=False)
-                   if t.state in (TrialState.COMPLETE, TrialState.PRUNED)
-                   or (t.state == TrialState.FAIL and not self._is_interrupted(t)))
+        return sum(
+            1
+            for t in study.get_trials(deepcopy=False)
+            if t.state in (TrialState.COMPLETE, TrialState.PRUNED)
+            or (t.state == TrialState.FAIL and not self._is_interrupted(t))
+        )
 
-    def _objective(self, ret: JobReturn) -> Tuple[Optional[List[float]], str]:
+    def _objective(self, ret: JobReturn) -> tuple[list[float] | None, str]:
         """(values, "") or (None, why the trial failed)."""
         if ret.status != JobStatus.COMPLETED:
             error = ret._return_value  # reading .return_value would re-raise
@@ -259,10 +287,10 @@ class OptunaSweeperImpl:
         study.tell(trial, state=TrialState.FAIL)
         log.warning(f"trial {trial.number} failed: {error}")
 
-    def _launch(self, batch: List[Tuple[optuna.Trial, List[str]]]) -> List[Tuple[optuna.Trial, JobReturn]]:
+    def _launch(self, batch: list[tuple[optuna.Trial, list[str]]]) -> list[tuple[optuna.Trial, JobReturn]]:
         """Launch in runs of consecutive trial numbers, so job number == trial number."""
-        out: List[Tuple[optuna.Trial, JobReturn]] = []
-        runs: List[List[Tuple[optuna.Trial, List[str]]]] = []
+        out: list[tuple[optuna.Trial, JobReturn]] = []
+        runs: list[list[tuple[optuna.Trial, list[str]]]] = []
         for item in batch:
             if runs and runs[-1][-1][0].number + 1 == item[0].number:
                 runs[-1].append(item)
@@ -275,20 +303,27 @@ class OptunaSweeperImpl:
 
     def _write_results(self, study: optuna.Study, sweep_dir: Path) -> None:
         done = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
-        results: Dict[str, Any] = {"name": "optuna", "study_name": self.study_name, "storage": self.storage,
-                                   "direction": self.directions if len(self.directions) > 1 else self.directions[0],
-                                   "n_trials": len(study.trials), "n_complete": len(done)}
+        results: dict[str, Any] = {
+            "name": "optuna",
+            "study_name": self.study_name,
+            "storage": self.storage,
+            "direction": self.directions if len(self.directions) > 1 else self.directions[0],
+            "n_trials": len(study.trials),
+            "n_complete": len(done),
+        }
         if done and len(self.directions) == 1:
             best = study.best_trial
-            results.update(best_trial=best.number, best_params=best.params, best_value=best.value,
-                           best_user_attrs=best.user_attrs)
+            results.update(
+                best_trial=best.number, best_params=best.params, best_value=best.value, best_user_attrs=best.user_attrs
+            )
         elif done:
-            results["best_trials"] = [{"number": t.number, "params": t.params, "values": t.values}
-                                      for t in study.best_trials]
+            results["best_trials"] = [
+                {"number": t.number, "params": t.params, "values": t.values} for t in study.best_trials
+            ]
         _atomic_write(sweep_dir / RESULTS_FILE, OmegaConf.to_yaml(OmegaConf.create(results)))
 
     # -- the sweep ------------------------------------------------------------------------------
-    def sweep(self, arguments: List[str]) -> Any:
+    def sweep(self, arguments: list[str]) -> Any:
         assert self.config is not None and self.launcher is not None and self.hydra_context is not None
         parser = OverridesParser.create(config_loader=self.hydra_context.config_loader)
         lines = [f"{k}={v}" for k, v in self.params.items()] + list(arguments)
@@ -303,11 +338,13 @@ class OptunaSweeperImpl:
         study = self._study()
         self._recover(study)
         finished = self._finished(study)
-        log.info(f"study {self.study_name!r} ({self.storage or 'in memory'}): {finished} of {self.n_trials} trials "
-                 f"finished; search space: {', '.join(space) or '-'}; sweep dir: {sweep_dir}")
-        returns: List[Sequence[JobReturn]] = []
+        log.info(
+            f"study {self.study_name!r} ({self.storage or 'in memory'}): {finished} of {self.n_trials} trials "
+            f"finished; search space: {', '.join(space) or '-'}; sweep dir: {sweep_dir}"
+        )
+        returns: list[Sequence[JobReturn]] = []
         while finished < self.n_trials:
-            batch: List[Tuple[optuna.Trial, List[str]]] = []
+            batch: list[tuple[optuna.Trial, list[str]]] = []
             for _ in range(min(self.n_jobs, self.n_trials - finished)):
                 trial = study.ask(fixed_distributions=space)
                 overrides = fixed_list + [f"{k}={format_value(v)}" for k, v in trial.params.items()]

@@ -5,11 +5,10 @@ it is in ``sys.modules``, and dataclasses then cannot resolve string annotations
 app would fail at start).
 """
 
-
 import importlib.util
 import warnings
 from dataclasses import dataclass, field
-from typing import Any, Dict, Optional
+from typing import Any
 
 from hydra.core.config_store import ConfigStore
 
@@ -24,7 +23,7 @@ class OptunaSweeperConf:
     study_name: str = "footsim"
     # e.g. sqlite:///multirun/hpo/study.db (relative to the launch dir) or sqlite:////abs/path.db;
     # null = in memory (no resume)
-    storage: Optional[str] = None
+    storage: str | None = None
     # the study's budget: the sweep runs until the study holds n_trials finished trials, so
     # re-running the same command after an interruption only runs the missing ones
     n_trials: int = 20
@@ -33,16 +32,19 @@ class OptunaSweeperConf:
     # any optuna sampler; TPE with a seed by default
     sampler: Any = field(default_factory=lambda: {"_target_": "optuna.samplers.TPESampler", "seed": 0})
     # search space: key -> Hydra sweep syntax (interval, tag(log, interval), range, choice, a,b,c)
-    params: Dict[str, Any] = field(default_factory=dict)
+    params: dict[str, Any] = field(default_factory=dict)
     # on resume, re-run (same parameters) the trials an interruption left unfinished
     retry_interrupted: bool = True
     # scalar entries of this file in each job's run dir become the trial's user attributes
-    user_attrs_file: Optional[str] = "eval/summary.json"
+    user_attrs_file: str | None = "eval/summary.json"
 
 
-ConfigStore.instance().store(group="hydra/sweeper", name="optuna", node=OptunaSweeperConf,
-                             provider="footsim_optuna_sweeper")
+ConfigStore.instance().store(
+    group="hydra/sweeper", name="optuna", node=OptunaSweeperConf, provider="footsim_optuna_sweeper"
+)
 
 if importlib.util.find_spec("hydra_plugins.hydra_optuna_sweeper") is not None:
-    warnings.warn("both footsim's Optuna sweeper and the published hydra-optuna-sweeper are installed; they both "
-                  "register hydra/sweeper=optuna. Uninstall hydra-optuna-sweeper (pip uninstall hydra-optuna-sweeper).")
+    warnings.warn(
+        "both footsim's Optuna sweeper and the published hydra-optuna-sweeper are installed; they both "
+        "register hydra/sweeper=optuna. Uninstall hydra-optuna-sweeper (pip uninstall hydra-optuna-sweeper)."
+    )

@@ -1,0 +1,109 @@
+"""Fingerprints of footsim's behaviour, to show that a refactoring changed nothing.
+
+    python scripts/behaviour_hashes.py [out=FILE.json] [check=FILE.json] [backends=pymunk,mujoco,dm_control,pybullet]
+
+Each fingerprint is a SHA-256 over the exact float64 bytes of what the code computes:
+
+* ``walk_engine``: 300 random double steps through ``QuinticWalk`` (joint targets, trunk, feet,
+  executed steps), the engine built by the env for the default backend;
+* ``rollout_<backend>``: a 25-step rollout through ``gymnasium.make`` with obstacles,
+  localization noise and ``randomization=default`` (observations, rewards, poses, outcomes);
+* ``rollout_pymunk_plain``: a 200-step 2D rollout of the default env (no obstacles).
+
+``check=FILE`` compares with a recorded file and exits 1 naming every fingerprint that differs.
+Only public surfaces are used, so the script runs unchanged before and after a refactoring.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import sys
+
+import gymnasium as gym
+import numpy as np
+
+import footsim  # noqa: F401  (registers the env)
+
+ENV_ID = "footsim/FootstepNav-v0"
+
+
+def _digest(chunks) -> str:
+    h = hashlib.sha256()
+    for chunk in chunks:
+        if isinstance(chunk, str):
+            h.update(chunk.encode())
+        else:
+            h.update(np.ascontiguousarray(np.asarray(chunk, dtype=np.float64)).tobytes())
+    return h.hexdigest()
+
+
+def walk_engine_hash(n: int = 300) -> str:
+    env = gym.make(ENV_ID, backend="mujoco").unwrapped
+    try:
+        engine = env.backend.engine
+        limits = env.robot.step_limits
+    finally:
+        env.close()
+    from footsim.walk.footsteps import DoubleStep
+
+    rng = np.random.default_rng(1234)
+    engine.reset()
+    chunks = []
+    for _ in range(n):
+        trajectory = engine.double_step(DoubleStep.from_unit(rng.uniform(-1, 1, 6).tolist(), limits))
+        chunks += [trajectory.joint_targets, trajectory.trunk_in_support, np.asarray(trajectory.executed, dtype=float)]
+        chunks += [np.asarray(tuple(foot), dtype=float) for foot in trajectory.feet]
+    return _digest(chunks)
+
+
+def rollout_hash(backend: str, steps: int, obstacles: bool, noise: str, randomization: str, seed: int) -> str:
+    env = gym.make(ENV_ID, backend=backend, obstacles=obstacles, noise=noise, randomization=randomization)
+    chunks = []
+    try:
+        rng = np.random.default_rng(seed)
+        obs, info = env.reset(seed=seed)
+        chunks += [obs, info["pose"]]
+        for _ in range(steps):
+            obs, reward, terminated, truncated, info = env.step(rng.uniform(-1, 1, 6).astype(np.float32))
+            chunks += [obs, [reward, float(terminated), float(truncated)], info["pose"], info["pose_estimate"]]
+            chunks.append(info["outcome"])
+            if terminated or truncated:
+                obs, info = env.reset()
+                chunks += [obs, info["pose"]]
+    finally:
+        env.close()
+    return _digest(chunks)
+
+
+def fingerprints(backends: list[str]) -> dict[str, str]:
+    out = {"walk_engine": walk_engine_hash()}
+    for backend in backends:
+        out[f"rollout_{backend}"] = rollout_hash(backend, 25, True, "localization", "default", seed=7)
+        print(f"{backend}: done", file=sys.stderr, flush=True)
+    out["rollout_pymunk_plain"] = rollout_hash("pymunk", 200, False, "none", "none", seed=3)
+    return out
+
+
+def main(argv: list[str]) -> int:
+    opts = dict(arg.split("=", 1) for arg in argv)
+    backends = opts.get("backends", "pymunk,mujoco,dm_control,pybullet").split(",")
+    result = fingerprints(backends)
+    print(json.dumps(result, indent=2))
+    if "out" in opts:
+        with open(opts["out"], "w") as f:
+            json.dump(result, f, indent=2)
+            f.write("\n")
+    if "check" in opts:
+        with open(opts["check"]) as f:
+            expected = json.load(f)
+        changed = sorted(k for k in result if k in expected and expected[k] != result[k])
+        if changed:
+            print(f"changed: {changed}", file=sys.stderr)
+            return 1
+        print("all fingerprints unchanged", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main(sys.argv[1:]))
