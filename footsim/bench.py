@@ -119,7 +119,7 @@ def _table(rows: list[dict]) -> str:
 
 
 def main(argv: list[str] | None = None) -> None:
-    from footsim.tasks.scenes import parse_kv_args
+    from footsim.utils import parse_kv_args
 
     args = parse_kv_args(
         sys.argv[1:] if argv is None else argv,

@@ -149,7 +149,7 @@ def collect(
     """Random double steps on ``backend``; arrays ``action (n,6), predicted (n,3), executed (n,3),
     fell (n,)`` (``executed`` is NaN where the robot fell or the sim failed)."""
     from footsim.geometry import Pose2D
-    from footsim.tasks.scenes import Scene
+    from footsim.scene import Scene
     from footsim.walk.footsteps import DoubleStep, FootstepGeometry
 
     rng = np.random.default_rng(seed)
@@ -343,7 +343,7 @@ USAGE = (
 def main(argv: list[str] | None = None) -> None:
     from footsim.backends.base import require_known_backends
     from footsim.rl.common import write_json
-    from footsim.tasks.scenes import atomic_write_text, parse_kv_args
+    from footsim.utils import atomic_write_text, parse_kv_args
 
     args = parse_kv_args(
         sys.argv[1:] if argv is None else argv,

@@ -16,8 +16,8 @@ import numpy as np
 from footsim import config as fconf
 from footsim.backends.base import RenderOverlay
 from footsim.geometry import Pose2D
+from footsim.scene import Scene
 from footsim.tasks import nav
-from footsim.tasks.scenes import Scene
 from footsim.walk.footsteps import DoubleStep, action_values
 
 OUTCOMES = ("running", "success", "timeout", "fall", "collision", "sim_error")

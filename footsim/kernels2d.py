@@ -60,11 +60,6 @@ def typed_entry(kernel, *example):
     return entry if callable(entry) else kernel
 
 
-def circle_array(circles) -> np.ndarray:
-    """``(x, y, r)`` triples (e.g. ``Scene.circles``) as a C-contiguous float64 ``(n, 3)`` array."""
-    return np.ascontiguousarray(np.asarray(circles, dtype=np.float64).reshape(-1, 3))
-
-
 def ray_directions(n_rays: int) -> np.ndarray:
     """``(2, n_rays)`` array: cos and sin of the ray headings ``k·2π/n`` in the robot frame."""
     k = np.arange(n_rays) * (2.0 * math.pi / n_rays)

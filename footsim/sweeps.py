@@ -219,7 +219,7 @@ def to_markdown(rows: list[dict], title: str = "") -> str:
 
 
 def write_summary(sweep_dir: str | Path, out_prefix: str | Path | None = None) -> tuple[Path, Path, list[dict]]:
-    from footsim.tasks.scenes import atomic_write_text
+    from footsim.utils import atomic_write_text
 
     sweep_dir = Path(sweep_dir)
     if not sweep_dir.is_dir():

@@ -18,7 +18,7 @@ from itertools import combinations
 import numpy as np
 
 from footsim.geometry import Pose2D, wrap_angle
-from footsim.tasks.scenes import Scene
+from footsim.scene import Scene
 
 TOLERANCE = 0.25
 
@@ -147,7 +147,7 @@ def walkcheck(backends: list[str]) -> tuple[dict, str]:
 
 
 def main(argv: list[str] | None = None) -> None:
-    from footsim.tasks.scenes import atomic_write_text, parse_kv_args
+    from footsim.utils import atomic_write_text, parse_kv_args
 
     args = parse_kv_args(
         sys.argv[1:] if argv is None else argv,

@@ -40,9 +40,8 @@ from pathlib import Path
 import numpy as np
 
 from footsim.geometry import Pose2D, wrap_angle
-from footsim.tasks.scenes import Scene
+from footsim.scene import Scene
 
-#: direction name -> (objective term, unit action pattern (x, y, yaw), measured axis, sign)
 DIRECTIONS = {
     "forward": ("v_forward", (1.0, 0.0, 0.0), "x", 1.0),
     "backward": ("v_backward", (-1.0, 0.0, 0.0), "x", -1.0),

@@ -19,7 +19,8 @@ from footsim import config as fconf
 from footsim.env import make_env
 from footsim.rl.common import LoadedPolicy
 from footsim.rl.evaluate import PolicyController
-from footsim.tasks.scenes import load_scenes, parse_kv_args
+from footsim.tasks.scenes import load_scenes
+from footsim.utils import parse_kv_args
 
 
 def main(argv: list[str]) -> None:

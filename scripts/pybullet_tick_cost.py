@@ -20,9 +20,8 @@ import pybullet as p
 
 from footsim import config as fconf
 from footsim.geometry import Pose2D
-from footsim.tasks.scenes import Scene
+from footsim.scene import Scene
 
-#: name → (backend option overrides, Bullet engine parameters)
 VARIANTS = {
     "as configured": ({}, {}),
     "solver_iterations 40": ({"solver_iterations": 40}, {}),

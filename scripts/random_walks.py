@@ -16,7 +16,7 @@ import yaml
 
 from footsim import config as fconf
 from footsim.geometry import Pose2D
-from footsim.tasks.scenes import Scene
+from footsim.scene import Scene
 from footsim.walk.footsteps import DoubleStep
 
 

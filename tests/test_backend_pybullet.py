@@ -16,7 +16,7 @@ import footsim  # noqa: E402,F401  (registers the env)
 from footsim.backends.pybullet_backend import PybulletBackend, model_urdf  # noqa: E402
 from footsim.env import FootstepEnv  # noqa: E402
 from footsim.geometry import Pose2D  # noqa: E402
-from footsim.tasks.scenes import Obstacle, Scene  # noqa: E402
+from footsim.scene import Obstacle, Scene  # noqa: E402
 from footsim.walk.footsteps import DoubleStep  # noqa: E402
 from footsim.walk.ik import LEG_JOINT_NAMES  # noqa: E402
 from footsim.walkcheck import make_backend  # noqa: E402

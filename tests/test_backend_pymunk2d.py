@@ -13,8 +13,9 @@ import pytest
 from footsim.backends.pymunk2d import Pymunk2DBackend, box_hits_circles
 from footsim.config import build_robot, build_walk, load_preset
 from footsim.geometry import Pose2D, mean_pose
+from footsim.scene import Obstacle, Scene
 from footsim.tasks import nav
-from footsim.tasks.scenes import Obstacle, Scene, SceneSampler
+from footsim.tasks.scenes import SceneSampler
 from footsim.walk.footsteps import DoubleStep
 
 

@@ -9,7 +9,7 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 import footsim  # noqa: F401  (registers the env)
 from footsim.env import FootstepEnv
 from footsim.geometry import Pose2D
-from footsim.tasks.scenes import Obstacle, Scene
+from footsim.scene import Obstacle, Scene
 
 
 @pytest.mark.parametrize("kwargs", [{}, {"obstacles": True}, {"obstacles": True, "noise": "localization"}])

@@ -166,7 +166,7 @@ def test_all_finite_matches_numpy():
 def _walk(name, compiled, overrides=None, randomization=None, steps=4):
     from footsim import config as fconf
     from footsim.geometry import Pose2D
-    from footsim.tasks.scenes import Scene
+    from footsim.scene import Scene
     from footsim.walk.footsteps import DoubleStep
 
     walk = fconf.build_walk(fconf.load_preset("walk", fconf.walk_preset_for(name)))
@@ -224,7 +224,7 @@ def test_quick_status_equals_the_full_check(name):
     if name == "dm_control":
         pytest.importorskip("dm_control")
     from footsim.geometry import Pose2D
-    from footsim.tasks.scenes import Scene
+    from footsim.scene import Scene
     from footsim.walkcheck import make_backend
 
     backend = make_backend(name)

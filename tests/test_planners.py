@@ -12,7 +12,8 @@ from footsim.planners.footstep import FootstepParams, FootstepPlanner, feet_from
 from footsim.planners.grid import Costmap, cell_path_length, distance_to_goal_map, grid_search, plan_path
 from footsim.planners.velocity import VelocityController, VelocityParams, carrot_command, smooth
 from footsim.rl.evaluate import evaluate
-from footsim.tasks.scenes import Obstacle, Scene, SceneSampler, sample_scenes
+from footsim.scene import Obstacle, Scene
+from footsim.tasks.scenes import SceneSampler, sample_scenes
 from footsim.walk.footsteps import DoubleStep, Footstep, FootstepGeometry, Side, StepLimits
 
 LIMITS = StepLimits(0.156, 0.103, 0.764)

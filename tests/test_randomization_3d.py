@@ -12,7 +12,7 @@ import pytest  # noqa: E402
 from footsim.backends.base import backend_class  # noqa: E402
 from footsim.env import FootstepEnv  # noqa: E402
 from footsim.geometry import Pose2D  # noqa: E402
-from footsim.tasks.scenes import Scene  # noqa: E402
+from footsim.scene import Scene  # noqa: E402
 from footsim.walk.footsteps import DoubleStep  # noqa: E402
 from footsim.walk.ik import LEG_JOINT_NAMES  # noqa: E402
 

@@ -54,7 +54,7 @@ def test_mujoco_hip_roll_feedback_reduces_roll_under_a_side_push():
     from footsim import config as fconf
     from footsim.backends.physics3d import fused_roll_pitch
     from footsim.geometry import Pose2D
-    from footsim.tasks.scenes import Scene
+    from footsim.scene import Scene
     from footsim.walk.footsteps import DoubleStep
 
     def max_roll(gain: float) -> float:
@@ -87,7 +87,7 @@ def test_step_result_reports_the_trunk_tilt():
     pytest.importorskip("mujoco")
     from footsim.backends.physics3d import fused_roll_pitch
     from footsim.geometry import Pose2D
-    from footsim.tasks.scenes import Scene
+    from footsim.scene import Scene
     from footsim.walk.footsteps import DoubleStep
     from footsim.walkcheck import make_backend
 

@@ -6,10 +6,11 @@ import pymunk
 import pytest
 
 from footsim.geometry import Pose2D, wrap_angles
+from footsim.scene import Obstacle, Scene
 from footsim.tasks import nav
 from footsim.tasks.nav import WEIGHTS_NO_OBSTACLES, WEIGHTS_OBSTACLES, NavTaskConfig
 from footsim.tasks.noise import NoiseModel
-from footsim.tasks.scenes import Obstacle, Scene, SceneSampler, load_scenes, sample_scenes, save_scenes
+from footsim.tasks.scenes import SceneSampler, load_scenes, sample_scenes, save_scenes
 
 
 def test_reward_terms_match_hand_computation():
@@ -131,7 +132,7 @@ def test_scene_file_gets_the_umask_permissions_and_a_failed_write_keeps_the_old_
     import os
     import stat
 
-    from footsim.tasks.scenes import atomic_save
+    from footsim.utils import atomic_save
 
     path = tmp_path / "s.json"
     old_umask = os.umask(0o027)

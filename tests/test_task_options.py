@@ -8,9 +8,9 @@ import pytest
 from footsim import config as fconf
 from footsim.env import FootstepEnv
 from footsim.geometry import Pose2D
+from footsim.scene import Scene
 from footsim.tasks import nav
 from footsim.tasks.nav import NavTaskConfig
-from footsim.tasks.scenes import Scene
 
 
 def test_stability_term_is_exp_of_the_max_tilt():
@@ -90,7 +90,7 @@ def test_path_hint_points_at_the_goal_in_free_space():
 
 
 def test_path_hint_goes_around_an_obstacle_on_the_straight_line():
-    from footsim.tasks.scenes import Obstacle
+    from footsim.scene import Obstacle
 
     scene = Scene(goal=Pose2D(2.0, 0.0, 0.0), obstacles=(Obstacle(1.0, 0.0, 0.3),))
     config = NavTaskConfig(obstacles=True, path_hint=True, path_hint_lookahead=1.0)

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from footsim.geometry import Pose2D
-from footsim.tasks.scenes import Scene
+from footsim.scene import Scene
 from footsim.walk.footsteps import DoubleStep, FeetState
 
 

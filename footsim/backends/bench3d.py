@@ -18,7 +18,7 @@ import time
 import numpy as np
 
 from footsim.geometry import Pose2D
-from footsim.tasks.scenes import Scene
+from footsim.scene import Scene
 from footsim.walk.footsteps import DoubleStep
 
 #: The benchmark's double steps (actions in [-1, 1]), cycled: forward at half the limit with a

@@ -112,7 +112,7 @@ from footsim.backends.mujoco_randomization import MujocoRandomization
 from footsim.backends.physics3d import Physics3DBackend, PhysicsSim, quat_to_matrix
 from footsim.robots.mjcf import FREE_JOINT, build_mjcf, sole_site
 from footsim.robots.spec import RobotSpec
-from footsim.tasks.scenes import Scene
+from footsim.scene import Scene
 from footsim.walk.ik import LEG_JOINT_NAMES
 
 CAMERA = "track"  # name of the render camera (on the torso)

@@ -39,7 +39,7 @@ from footsim.backends.physics3d import Physics3DBackend, PhysicsSim, levelling_r
 from footsim.kernels3d import all_finite
 from footsim.robots.mjcf import CONTACT_FRICTION, FREE_JOINT, build_mjcf, import_mujoco
 from footsim.robots.spec import RobotSpec
-from footsim.tasks.scenes import Scene
+from footsim.scene import Scene
 from footsim.walk.ik import LEG_JOINT_NAMES
 
 mujoco = import_mujoco()

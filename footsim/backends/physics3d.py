@@ -22,7 +22,7 @@ from footsim.backends.base import Backend, RenderOverlay, StepResult
 from footsim.geometry import Pose2D
 from footsim.kernels3d import all_finite, control_tick, quick_status, stabilized_targets
 from footsim.robots.spec import RobotSpec
-from footsim.tasks.scenes import Scene
+from footsim.scene import Scene
 from footsim.walk.engine import QuinticWalk
 from footsim.walk.footsteps import DoubleStep, FootstepGeometry, Side
 from footsim.walk.ik import LEG_JOINT_NAMES

@@ -64,7 +64,7 @@ from footsim.kernels2d import typed_entry
 from footsim.kernels3d import bullet_base_ok, bullet_control_state, bullet_control_tick
 from footsim.robots.spec import RobotSpec
 from footsim.robots.urdf import build_urdf
-from footsim.tasks.scenes import Scene
+from footsim.scene import Scene
 from footsim.walk.ik import LEG_JOINT_NAMES
 
 # Collision groups / masks (collide when group_a & mask_b and group_b & mask_a).

@@ -31,7 +31,7 @@ from footsim import kernels2d
 from footsim.backends.base import Backend, RenderOverlay, StepResult
 from footsim.geometry import Pose2D, mean_pose
 from footsim.robots.spec import RobotSpec
-from footsim.tasks.scenes import Scene
+from footsim.scene import Scene, circle_array
 from footsim.walk.footsteps import DoubleStep, FeetState, FootstepGeometry, Side, placed_double_step
 from footsim.walk.params import WalkParams
 
@@ -51,7 +51,7 @@ def box_hits_circles(x: float, y: float, theta: float, half_length: float, half_
     (the backend calls the kernels directly, with the episode's circles as an array).
     """
     return kernels2d.box_hits_circles(
-        float(x), float(y), float(theta), float(half_length), float(half_width), kernels2d.circle_array(circles)
+        float(x), float(y), float(theta), float(half_length), float(half_width), circle_array(circles)
     )
 
 
@@ -120,7 +120,7 @@ class Pymunk2DBackend(Backend):
         reach = max(math.hypot(*foot_half), math.hypot(*trunk_half)) * (1.0 + 1e-9) + 1e-9
         self._dims = np.array([reach, *foot_half, *trunk_half], dtype=np.float64)  # kernels2d.double_step_collides
         self._space: pymunk.Space | None = None
-        self._circles = kernels2d.circle_array(())  # the scene's (x, y, r), obstacles and ball
+        self._circles = circle_array(())  # the scene's (x, y, r), obstacles and ball
         self.feet: FeetState | None = None
         self.history: list[tuple[Side, Pose2D]] = []
         self.nav_history: list[Pose2D] = []

@@ -39,7 +39,7 @@ import numpy as np
 
 from footsim.geometry import Pose2D, mean_pose, wrap_angle
 from footsim.planners.grid import Costmap, distance_to_goal_map
-from footsim.tasks.scenes import Obstacle, Scene
+from footsim.scene import Obstacle, Scene
 from footsim.walk.footsteps import DoubleStep, Footstep, FootstepGeometry, Side
 
 

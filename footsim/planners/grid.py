@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from footsim.tasks.scenes import Obstacle
+from footsim.scene import Obstacle
 
 SQRT2 = math.sqrt(2.0)
 _NEIGHBOURS = (

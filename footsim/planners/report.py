@@ -212,7 +212,7 @@ def _conf(name: str) -> dict:
 
 
 def main(argv: list[str] | None = None) -> None:
-    from footsim.tasks.scenes import parse_kv_args
+    from footsim.utils import parse_kv_args
 
     argv = sys.argv[1:] if argv is None else argv
     if not argv:

@@ -21,7 +21,7 @@ import numpy as np
 
 from footsim.geometry import Pose2D, wrap_angle
 from footsim.planners.grid import Costmap, densify, plan_path
-from footsim.tasks.scenes import Scene
+from footsim.scene import Scene
 from footsim.walk.footsteps import FootstepGeometry, StepLimits
 
 

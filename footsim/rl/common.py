@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
-from footsim.tasks.scenes import atomic_save, atomic_write_text  # noqa: F401  (atomic_save is imported from here)
+from footsim.utils import atomic_write_text
 
 MODEL_FILE = "model.zip"
 VECNORM_FILE = "vecnormalize.pkl"

@@ -18,7 +18,9 @@ from typing import Protocol
 
 import numpy as np
 
-from footsim.tasks.scenes import Scene, atomic_write_text, load_scenes, sample_scenes
+from footsim.scene import Scene
+from footsim.tasks.scenes import load_scenes, sample_scenes
+from footsim.utils import atomic_write_text
 
 OUTCOME_COLUMNS = ("success", "timeout", "fall", "collision", "sim_error")
 
@@ -81,7 +83,7 @@ def save_video(path: Path, frames: list[np.ndarray], fps: float = 2.0) -> None:
     """An animated GIF (PIL only, no codec needed), written atomically."""
     from PIL import Image
 
-    from footsim.rl.common import atomic_save
+    from footsim.utils import atomic_save
 
     images = [Image.fromarray(f) for f in frames if f is not None]
     if not images:
@@ -189,7 +191,7 @@ def plot_goals(path: Path, records: list[dict], title: str = "") -> None:
     import matplotlib.pyplot as plt
     from matplotlib.colors import LogNorm
 
-    from footsim.rl.common import atomic_save
+    from footsim.utils import atomic_save
 
     fig, ax = plt.subplots(figsize=(7, 6))
     ok = [r for r in records if r["outcome"] == "success"]

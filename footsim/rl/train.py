@@ -20,7 +20,6 @@ from footsim.rl.common import (
     CONFIG_FILE,
     MODEL_FILE,
     VECNORM_FILE,
-    atomic_save,
     load_run_config,
     policy_class,
     policy_kwargs,
@@ -28,6 +27,7 @@ from footsim.rl.common import (
     validate_train_config,
     write_json,
 )
+from footsim.utils import atomic_save
 
 LATEST = "latest.zip"
 LATEST_VECNORM = "latest_vecnormalize.pkl"

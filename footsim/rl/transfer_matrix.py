@@ -196,7 +196,7 @@ def _fmt(v) -> str:
 
 
 def write_csv(path: Path, rows: list[dict]) -> None:
-    from footsim.tasks.scenes import atomic_write_text
+    from footsim.utils import atomic_write_text
 
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=list(COLUMNS), extrasaction="ignore")
@@ -268,7 +268,7 @@ def plot_heatmap(
     import matplotlib.pyplot as plt
     import numpy as np
 
-    from footsim.rl.common import atomic_save
+    from footsim.utils import atomic_save
 
     n = len(randomizations)
     fig, axes = plt.subplots(
@@ -303,7 +303,7 @@ def plot_heatmap(
 
 
 def write_outputs(out: Path, rows: list[dict], train: list[str], evals: list[str], randomizations: list[str]) -> str:
-    from footsim.tasks.scenes import atomic_write_text
+    from footsim.utils import atomic_write_text
 
     write_csv(out / "matrix.csv", rows)
     table = markdown(rows, train, evals, randomizations)

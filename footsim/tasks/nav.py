@@ -14,9 +14,8 @@ import numpy as np
 
 from footsim import kernels2d
 from footsim.geometry import Pose2D, wrap_angle
-from footsim.tasks.scenes import Obstacle, Scene
+from footsim.scene import Obstacle, Scene, circle_array
 
-#: Thesis 5.5 weight sets (each sums to 1).
 WEIGHTS_NO_OBSTACLES = {"distance": 0.3, "angle": 0.3, "orientation": 0.2, "obstacle": 0.0, "continuity": 0.2}
 WEIGHTS_OBSTACLES = {"distance": 0.25, "angle": 0.25, "orientation": 0.15, "obstacle": 0.2, "continuity": 0.15}
 #: The thesis's five terms plus "stability" (3D option: exp(-max trunk tilt / stability_scale)).
@@ -158,7 +157,7 @@ def ray_distances(pose: Pose2D, obstacles: tuple[Obstacle, ...], n_rays: int, ma
     a circle reports 0.  (Compiled: :func:`footsim.kernels2d.scan_rays`.)
     """
     out = np.empty(int(n_rays))
-    circles = kernels2d.circle_array([(o.x, o.y, o.r) for o in obstacles])
+    circles = circle_array([(o.x, o.y, o.r) for o in obstacles])
     kernels2d.scan_rays(
         float(pose[0]), float(pose[1]), float(pose[2]), circles, _ray_directions(int(n_rays)), float(max_range), out
     )
@@ -174,10 +173,10 @@ def _nearest_circle_distance(
     pose: Pose2D, circles: tuple[tuple[float, float, float], ...], array: np.ndarray | None = None
 ) -> float:
     """Distance from ``pose`` to the nearest edge of ``circles`` (``array``: the same circles as
-    :func:`footsim.kernels2d.circle_array`); inf without circles.  The kernel picks the circle,
+    :func:`footsim.circle_array`); inf without circles.  The kernel picks the circle,
     ``math.hypot`` gives the distance (the C library's ``hypot`` can differ in the last bit)."""
     px, py = pose[0], pose[1]
-    k = kernels2d.nearest_circle(px, py, kernels2d.circle_array(circles) if array is None else array)
+    k = kernels2d.nearest_circle(px, py, circle_array(circles) if array is None else array)
     if k < 0:
         return math.inf
     ox, oy, r = circles[k]

@@ -1,0 +1,57 @@
+"""Small I/O helpers shared by the command lines and the trainer: atomic file writes and
+``key=value`` argument parsing."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+
+def _default_file_mode() -> int:
+    """What ``open()`` would give a new file under the current umask (``mkstemp`` gives 0600)."""
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
+def atomic_save(save: Callable[[str], None], path: str | os.PathLike, suffix: str = ".tmp") -> None:
+    """Let ``save`` write a temporary file beside ``path``, then move it into place: a crash
+    leaves either the old or the new file, never a half one.  The file gets the usual
+    permissions (umask), not ``mkstemp``'s owner-only ones."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=suffix)
+    os.close(fd)
+    try:
+        save(tmp)
+        os.chmod(tmp, _default_file_mode())
+        os.replace(tmp, path)
+    finally:
+        Path(tmp).unlink(missing_ok=True)
+
+
+def atomic_write_text(path: str | os.PathLike, text: str) -> None:
+    """``text`` into ``path`` atomically (``atomic_save``), synced to disk before the move."""
+
+    def save(tmp: str) -> None:
+        with open(tmp, "w") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+
+    atomic_save(save, path)
+
+
+def parse_kv_args(argv: list[str], allowed: dict[str, object], command: str) -> dict:
+    """Parse ``key=value`` arguments (the Hydra-like style of every footsim command)."""
+    out = dict(allowed)
+    for arg in argv:
+        if "=" not in arg:
+            raise SystemExit(f"{command}: expected key=value, got {arg!r}; keys: {sorted(allowed)}")
+        key, value = arg.split("=", 1)
+        if key not in allowed:
+            raise SystemExit(f"{command}: unknown key {key!r}; keys: {sorted(allowed)}")
+        out[key] = value
+    return out
