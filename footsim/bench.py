@@ -11,6 +11,7 @@ import platform
 import statistics
 import sys
 import time
+from typing import Any
 
 import numpy as np
 
@@ -86,7 +87,7 @@ def _bench_3d(name: str):
 
         runs = [bench_backend(name, repeats=20, seed=r) for r in range(repeats)]
         keys = [k for k, v in runs[0].items() if isinstance(v, (int, float)) and not isinstance(v, bool)]
-        row = {"backend": name}
+        row: dict[str, Any] = {"backend": name}
         row.update({k: statistics.median(r[k] for r in runs) for k in keys if k != "repeats"})
         row["fell"] = any(r.get("fell") for r in runs)
         return [row]

@@ -11,10 +11,11 @@ fall.  For every double step it records
   the frame of the base before it (``StepResult.pose``);
 * whether it fell.
 
-(uniform in ``[-1, 1]`` times a magnitude drawn in ``[0.25, 1] × scale`` per new action) and fits the **execution model**: per output (dx, dy, dθ) a linear regression on the predicted
-displacement (``features=dx,dy,dtheta`` by default; ``abs_dx, abs_dy, abs_dtheta`` can be added)
-with intercept and residual σ, and the fall probability per double step as a logistic regression on
-the absolute action values.  ``backend=pymunk backend.execution_model=FILE`` makes the 2D
+The actions are uniform in ``[-1, 1]`` times a magnitude drawn in ``[0.25, 1] × scale`` per new
+action.  From these records it fits the **execution model**: per output (dx, dy, dθ) a linear
+regression on the predicted displacement (``features=dx,dy,dtheta`` by default; ``abs_dx, abs_dy,
+abs_dtheta`` can be added) with intercept and residual σ, and the fall probability per double step
+as a logistic regression on the absolute action values.  ``backend=pymunk backend.execution_model=FILE`` makes the 2D
 backend execute through it (:class:`ExecutionModel`, ``footsim.backends.pymunk2d``).
 
 ``footsim-calibrate compare=FILE.json [backend=mujoco] [out=FILE.md]`` runs the walkcheck
@@ -28,6 +29,7 @@ import json
 import math
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -156,7 +158,7 @@ def collect(
     robot = backend.robot
     geometry = FootstepGeometry(robot.step_limits, robot.foot_length, robot.foot_width, backend.walk.foot_distance)
     scene = Scene(goal=Pose2D(100.0, 0.0, 0.0))
-    rows = {"action": [], "predicted": [], "executed": [], "fell": []}
+    rows: dict[str, list] = {"action": [], "predicted": [], "executed": [], "fell": []}
     pose = feet = None
     action = np.zeros(6)
     resets = 0
@@ -174,6 +176,7 @@ def collect(
         elif rng.random() >= repeat:
             action = _draw(rng, scale)
         result = backend.execute(DoubleStep.from_action(action, robot.step_limits))
+        assert feet is not None  # set together with pose at every reset
         after = (
             result.feet
             if result.feet is not None
@@ -279,7 +282,7 @@ def consistency(model_path: str, backend3d: str = "mujoco", seed: int = 0) -> tu
         ref_backend.close()
     walk = fconf.build_walk(fconf.load_preset("walk", fconf.walk_preset_for("pymunk")))
     robot = fconf.build_robot("wolfgang")
-    variants = {
+    variants: dict[str, dict[str, Any]] = {
         "pymunk (geometry)": {},
         "pymunk + model (mean)": {"execution_model": model_path, "execution_noise": False},
         "pymunk + model (with noise)": {"execution_model": model_path},
@@ -372,7 +375,7 @@ def main(argv: list[str] | None = None) -> None:
         n_steps, seed = int(args["n_steps"]), int(args["seed"])
         scale, repeat = float(args["scale"]), float(args["repeat"])
     except ValueError as err:
-        raise SystemExit(f"footsim-calibrate: bad number ({err})\n{USAGE}")
+        raise SystemExit(f"footsim-calibrate: bad number ({err})\n{USAGE}") from None
     if n_steps <= 0 or not 0 < scale <= 1 or not 0 <= repeat < 1:
         raise SystemExit("footsim-calibrate: need n_steps > 0, 0 < scale <= 1, 0 <= repeat < 1")
     if args["backend"] == "pymunk":

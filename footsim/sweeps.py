@@ -23,6 +23,8 @@ import traceback
 from pathlib import Path
 from typing import Any
 
+from hydra.experimental.callback import Callback
+
 FAILED_FILE = "FAILED.json"
 SUMMARY_FILE = Path("eval") / "summary.json"
 USAGE = "usage: footsim-sweep-summary dir=MULTIRUN_DIR [out=PREFIX]"
@@ -42,13 +44,7 @@ METRIC_ORDER = (
 
 
 # -- failure marker ---------------------------------------------------------------------------
-try:
-    from hydra.experimental.callback import Callback as _HydraCallback
-except ImportError:  # pragma: no cover - hydra is a hard dependency
-    _HydraCallback = object
-
-
-class JobStatusCallback(_HydraCallback):
+class JobStatusCallback(Callback):
     """Writes ``FAILED.json`` into a job's run dir when its task function raised."""
 
     def on_job_end(self, config, job_return, **kwargs: Any) -> None:

@@ -36,6 +36,7 @@ from __future__ import annotations
 import math
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -101,13 +102,14 @@ def measure_direction(
                 break
             seconds += result.duration_s
             yaw += wrap_angle(result.pose.theta - before.theta)
-        row = {"level": float(level), "fell": fell}
+        row: dict[str, Any] = {"level": float(level), "fell": fell}
         if error is not None:
             row["sim_error"] = str(error)
         if fell:
             rows.append(row)
             stop = "fell" if error is None else "sim error"
             break
+        assert start is not None  # measure >= 1: the warm-up's end was reached
         row["speed"] = _speed(start, backend.planar_pose(), yaw, axis, sign, seconds)
         rows.append(row)
         if rows[:-1] and row["speed"] <= best * (1.0 + min_gain):

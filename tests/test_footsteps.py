@@ -36,13 +36,11 @@ def test_landing_is_resting_pose_plus_step():
     np.testing.assert_allclose(pose, (-0.1, -0.1799 - 0.02, -0.2))
 
 
-def _corners(x, y, t, l=0.154, w=0.106):
+def _corners(x, y, t, length=0.154, width=0.106):
     c, s = math.cos(t), math.sin(t)
+    hl, hw = length / 2, width / 2
     return np.array(
-        [
-            (x + c * dx - s * dy, y + s * dx + c * dy)
-            for dx, dy in ((l / 2, w / 2), (-l / 2, w / 2), (-l / 2, -w / 2), (l / 2, -w / 2))
-        ]
+        [(x + c * dx - s * dy, y + s * dx + c * dy) for dx, dy in ((hl, hw), (-hl, hw), (-hl, -hw), (hl, -hw))]
     )
 
 

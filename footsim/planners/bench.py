@@ -60,7 +60,10 @@ def bench_planners(
                             first.append(plan.first_solution_s)
                             complete += 1
             if name == "velocity":
-                label = f"velocity: global plan ({ctrl.params.global_planner}), every {ctrl.params.replan_period} double steps"
+                label = (
+                    f"velocity: global plan ({ctrl.params.global_planner}), "
+                    f"every {ctrl.params.replan_period} double steps"
+                )
                 rows.append(_row(label, times))
             else:
                 label = f"footstep: anytime A* per double step, budget {ctrl.params.time_budget_s * 1e3:.0f} ms"

@@ -34,6 +34,7 @@ import heapq
 import math
 import time
 from dataclasses import dataclass, field, fields
+from typing import Any
 
 import numpy as np
 
@@ -165,7 +166,9 @@ class FootstepPlanner:
         # Transition set per flying side, deduplicated: executed footsteps, landing poses relative to
         # the support foot, costs, and the half extents of the 3k rectangles checked per expansion
         # (landing foot, mid-swing foot, trunk).
-        self.transitions: dict[Side, tuple[list[Footstep], np.ndarray, np.ndarray]] = {}
+        # per flying side: steps, their relative poses, costs, and the half lengths/widths of the
+        # checked rectangles (both feet and the trunk)
+        self.transitions: dict[Side, tuple[list[Footstep], np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
         lim = self.limits
         for side in (Side.LEFT, Side.RIGHT):
             seen, steps, rels, costs = set(), [], [], []
@@ -390,7 +393,9 @@ class FootstepPlanner:
         inv_res, nbins = 1.0 / p.lattice_xy, int(p.lattice_theta_bins)
         inv_bin = nbins / (2 * math.pi)
         # node: (x, y, theta, side, parent, step, support pose = the flying foot's next start)
-        nodes = [(left.x, left.y, left.theta, Side.LEFT, -1, None, right)]
+        nodes: list[tuple[float, float, float, Side, int, Footstep | None, Pose2D]] = [
+            (left.x, left.y, left.theta, Side.LEFT, -1, None, right)
+        ]
         nav0 = mean_pose(left, right)
         h_start = float(self._heuristic([nav0.x], [nav0.y], [nav0.theta])[0])
         open_heap = [(eps * h_start, 0.0, 0)]
@@ -471,7 +476,7 @@ class FootstepPlanner:
                 if hl_[q] < partial[0]:
                     partial = (hl_[q], m)
                 heapq.heappush(open_heap, (fl[q], gc, m))
-        result = {"plan": plan, "expanded": expanded, "timed_out": timed_out, "partial": None}
+        result: dict[str, Any] = {"plan": plan, "expanded": expanded, "timed_out": timed_out, "partial": None}
         if plan is None and partial[1] != 0:
             chain = self._chain(partial[1], nodes)
             result["partial"] = (
@@ -553,7 +558,8 @@ class FootstepController:
         params: FootstepParams = FootstepParams(),
     ):
         self.geometry = geometry
-        self.trunk_footprint = tuple(trunk_footprint)
+        length, width = trunk_footprint
+        self.trunk_footprint = (length, width)
         self.params = params
         self.limits = geometry.limits
         self.planner: FootstepPlanner | None = None
@@ -588,6 +594,7 @@ class FootstepController:
         else:
             left, right = feet_from_nav(nav, self.geometry, self.last_left_step)
             previous = self.plans[-1] if self.plans and self.params.reuse_plan else None
+            assert self.planner is not None, "reset() builds the planner"
             plan = self.planner.plan(left, right, previous=previous)
             self.plan_times.append(plan.time_s)
             self.plans.append(plan)

@@ -51,8 +51,8 @@ class Costmap:
     def __post_init__(self) -> None:
         self.blocked = self.clearance < self.inflated_radius
         self.shape = self.clearance.shape
-        self._nearest_free = None
-        self._flat = None
+        self._nearest_free: np.ndarray | None = None
+        self._flat: list[bool] | None = None
 
     @classmethod
     def from_obstacles(
@@ -143,6 +143,8 @@ class Costmap:
         si, sj = (1 if di > 0 else -1), (1 if dj > 0 else -1)
         # Parametric distances (scaled by |di|·|dj| to stay in integers) to the next cell borders.
         adi, adj = abs(di), abs(dj)
+        ti: float
+        tj: float
         ti, tj = adj, adi  # = 0.5 / |d| scaled by 2|di||dj|
         step_i, step_j = 2 * adj, 2 * adi
         if adi == 0:
@@ -227,6 +229,7 @@ def grid_search(
                 n = (s[0] + di, s[1] + dj)
                 if n in closed and g[n] + c < best_g:
                     best, best_g = n, g[n] + c
+            assert best is not None  # the cell whose expansion queued s is a closed neighbour
             parent[s], g[s] = best, best_g
         closed.add(s)
         expanded += 1
@@ -273,7 +276,7 @@ def plan_path(
     cells, expanded = grid_search(costmap, s_free, g_free, algorithm)
     if cells is None:
         return None
-    pts = [costmap.world(*c) for c in cells]
+    pts: list[tuple[float, ...]] = [costmap.world(*c) for c in cells]
     pts[0] = tuple(start_xy) if s_free == s_cell else pts[0]
     if s_free != s_cell:
         pts.insert(0, tuple(start_xy))

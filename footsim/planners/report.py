@@ -17,7 +17,9 @@ from __future__ import annotations
 import csv
 import json
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any, cast
 
 import numpy as np
 
@@ -182,7 +184,9 @@ def example_paths(
     from footsim.tasks.scenes import load_scenes
 
     scenes = load_scenes(scenes_file)
-    controllers = {name: (lambda env, n=name: make_controller(env, _conf(n))) for name in ("velocity", "footstep")}
+    controllers: dict[str, Callable[..., Any]] = {
+        name: (lambda env, n=name: make_controller(env, _conf(n))) for name in ("velocity", "footstep")
+    }
     if policy_run:
         from footsim.rl.common import LoadedPolicy
         from footsim.rl.evaluate import PolicyController
@@ -208,7 +212,8 @@ def _conf(name: str) -> dict:
 
     from footsim.config import conf_dir
 
-    return OmegaConf.to_container(OmegaConf.load(conf_dir() / "controller" / f"{name}.yaml"), resolve=True)
+    preset = OmegaConf.to_container(OmegaConf.load(conf_dir() / "controller" / f"{name}.yaml"), resolve=True)
+    return cast(dict, preset)  # the preset file is a mapping
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -113,7 +113,11 @@ def smooth(
     previous: tuple[float, float, float], new: tuple[float, float, float], alpha: float
 ) -> tuple[float, float, float]:
     """Exponential filter: ``alpha · new + (1 − alpha) · previous`` per component."""
-    return tuple(alpha * n + (1.0 - alpha) * o for n, o in zip(new, previous))
+    return (
+        alpha * new[0] + (1.0 - alpha) * previous[0],
+        alpha * new[1] + (1.0 - alpha) * previous[1],
+        alpha * new[2] + (1.0 - alpha) * previous[2],
+    )
 
 
 class VelocityController:
@@ -146,9 +150,9 @@ class VelocityController:
         return cls(env.limits, env.walk, geometry, params)
 
     def reset_state(self) -> None:
-        self.scene = None
-        self.costmap = None
-        self.path = None
+        self.scene: Scene | None = None
+        self.costmap: Costmap | None = None
+        self.path: np.ndarray | None = None
         self.path_index = 0
         self.command = (0.0, 0.0, 0.0)
         self.steps = 0
@@ -204,6 +208,7 @@ class VelocityController:
 
     # -- internals ----------------------------------------------------------------------------
     def _replan(self, pose: Pose2D) -> None:
+        assert self.costmap is not None, "reset() builds the costmap before the first plan"
         target = self.targets[0]
         start = time.perf_counter()
         path = plan_path(self.costmap, (pose.x, pose.y), (target.x, target.y), self.params.global_planner)
@@ -224,6 +229,7 @@ class VelocityController:
     def _carrot(self, pose: Pose2D) -> tuple[float, float]:
         """The path point ``carrot_distance`` points past the closest one (never moving backwards)."""
         pts = self.path
+        assert pts is not None, "reset() plans a path before the first command"
         d = np.hypot(pts[self.path_index :, 0] - pose.x, pts[self.path_index :, 1] - pose.y)
         self.path_index += int(np.argmin(d))
         k = min(self.path_index + int(self.params.carrot_distance), len(pts) - 1)

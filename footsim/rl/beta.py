@@ -10,10 +10,12 @@ importable), so Beta policies also serve as transfer-learning initialisations.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from functools import partial
 
 import numpy as np
 import torch as th
+from gymnasium import spaces
 from stable_baselines3.common.distributions import Distribution
 from stable_baselines3.common.policies import ActorCriticPolicy
 from torch import nn
@@ -23,12 +25,13 @@ _EPS = 1e-6
 
 
 class BetaDistribution(Distribution):
+    distribution: th.distributions.Beta  # set by proba_distribution()
+
     def __init__(self, action_dim: int, low: np.ndarray, high: np.ndarray):
         super().__init__()
         self.action_dim = action_dim
         self.low = th.as_tensor(low, dtype=th.float32)
         self.scale = th.as_tensor(high - low, dtype=th.float32)
-        self.distribution: th.distributions.Beta | None = None
 
     def proba_distribution_net(self, latent_dim: int) -> nn.Module:
         return nn.Linear(latent_dim, 2 * self.action_dim)
@@ -76,6 +79,8 @@ class BetaActorCriticPolicy(ActorCriticPolicy):
 
     def _build(self, lr_schedule) -> None:
         super()._build(lr_schedule)  # feature/MLP extractors, value net, initialisation
+        if not isinstance(self.action_space, spaces.Box):
+            raise ValueError(f"the Beta policy needs a bounded Box action space, got {self.action_space}")
         low, high = self.action_space.low, self.action_space.high
         if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high))):
             raise ValueError("the Beta policy needs a bounded Box action space")
@@ -84,7 +89,8 @@ class BetaActorCriticPolicy(ActorCriticPolicy):
         if self.ortho_init:
             self.action_net.apply(partial(self.init_weights, gain=0.01))
         del self.log_std  # the Gaussian's parameter has no role here
-        self.optimizer = self.optimizer_class(self.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs)
+        make_optimizer: Callable[..., th.optim.Optimizer] = self.optimizer_class  # an Optimizer subclass taking lr
+        self.optimizer = make_optimizer(self.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs)
 
     def _get_action_dist_from_latent(self, latent_pi: th.Tensor) -> Distribution:
         return self.action_dist.proba_distribution(self.action_net(latent_pi))

@@ -42,7 +42,10 @@ def load_run_config(run_dir: str | os.PathLike) -> DictConfig:
     path = Path(run_dir) / CONFIG_FILE
     if not path.is_file():
         raise FileNotFoundError(f"{run_dir} is not a footsim run directory: {CONFIG_FILE} is missing")
-    return OmegaConf.load(path)
+    cfg = OmegaConf.load(path)
+    if not isinstance(cfg, DictConfig):
+        raise ValueError(f"{path} is not a footsim run config: expected a mapping, got a list")
+    return cfg
 
 
 def validate_train_config(cfg: DictConfig) -> None:

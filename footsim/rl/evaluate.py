@@ -117,6 +117,7 @@ def evaluate(
         filming = video_dir is not None and i < video_episodes
         record, frames = run_episode(env, controller, scenes[i], seed=seed + i, record_frames=filming)
         if filming:
+            assert video_dir is not None
             save_video(video_dir / f"episode_{i:03d}.gif", frames)
         records.append({"scene": i, **record})
     return records

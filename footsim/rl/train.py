@@ -49,7 +49,7 @@ def _env_factory(cfg: DictConfig, rank: int, worker_process: bool = False):
 
 
 def build_vec_env(cfg: DictConfig):
-    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecNormalize
 
     n_envs = int(cfg.train.n_envs)
     kind = cfg.train.vec_env
@@ -68,7 +68,7 @@ def build_vec_env(cfg: DictConfig):
             ["stable_baselines3.common.vec_env", "footsim.env", BACKENDS[cfg.backend.name].target.split(":")[0]]
         )
     factories = [_env_factory(cfg, i, worker_process=kind == "subproc") for i in range(n_envs)]
-    venv = DummyVecEnv(factories) if kind == "dummy" else SubprocVecEnv(factories, start_method="forkserver")
+    venv: VecEnv = DummyVecEnv(factories) if kind == "dummy" else SubprocVecEnv(factories, start_method="forkserver")
     venv.seed(int(cfg.seed))
     if cfg.agent.normalize_reward or cfg.agent.normalize_obs:
         venv = VecNormalize(
@@ -145,7 +145,7 @@ def _make_outcome_callback(window: int = 100):
     from footsim.env import OUTCOMES
 
     class OutcomeRates(BaseCallback):
-        def __init__(self):
+        def __init__(self) -> None:
             super().__init__()
             self.recent: deque[str] = deque(maxlen=window)
 
@@ -252,8 +252,9 @@ def train(cfg: DictConfig, run_dir: Path) -> dict:
             raise SystemExit(130)  # the shell's code for Ctrl-C
     wall = time.time() - started
     atomic_save(model.save, run_dir / MODEL_FILE, ".zip")
-    if isinstance(model.get_vec_normalize_env(), VecNormalize):
-        atomic_save(model.get_vec_normalize_env().save, run_dir / VECNORM_FILE, ".pkl")
+    vec_normalize = model.get_vec_normalize_env()
+    if isinstance(vec_normalize, VecNormalize):
+        atomic_save(vec_normalize.save, run_dir / VECNORM_FILE, ".pkl")
     save_checkpoint(model, run_dir)
     venv.close()
     write_json(

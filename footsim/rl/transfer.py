@@ -41,6 +41,7 @@ def init_from_run(model, parent_dir: str | Path, task=None) -> dict:
             f"vs this run {model.action_space.shape}"
         )
     ours, theirs = model.observation_space.shape, parent.observation_space.shape
+    assert ours is not None and theirs is not None  # footsim's observation spaces are Boxes
     parent_cfg = load_run_config(parent_dir)
     expand = ours != theirs
     if expand:

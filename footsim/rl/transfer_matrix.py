@@ -24,6 +24,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any, cast
 
 from omegaconf import OmegaConf
 
@@ -56,7 +57,7 @@ def _defaults():
 
 def parse_args(argv: list[str]) -> tuple[dict, list[str]]:
     """This command's options (conf/transfer_matrix.yaml + overrides) and the footsim-train overrides."""
-    cfg = OmegaConf.to_container(_defaults())
+    cfg = cast("dict[str, Any]", OmegaConf.to_container(_defaults()))  # the YAML file is a mapping of str keys
     train_overrides = []
     for arg in argv:
         if arg in ("-h", "--help"):
@@ -358,7 +359,8 @@ def transfer_matrix(cfg: dict, train_overrides: list[str]) -> list[dict]:
         print(f"note: the runs were trained on different tasks {sorted(tasks)}; all are evaluated on one scene file")
     scenes = scene_file(cfg, configs[runs[0]], out)
     print(
-        f"{len(runs)} {'policy' if len(runs) == 1 else 'policies'} (trained on {', '.join(train_backends)}) x eval backends {evals} x randomization "
+        f"{len(runs)} {'policy' if len(runs) == 1 else 'policies'} (trained on {', '.join(train_backends)}) "
+        f"x eval backends {evals} x randomization "
         f"{cfg['randomization']}; scenes: {scenes}",
         flush=True,
     )

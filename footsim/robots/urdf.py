@@ -45,8 +45,8 @@ def _primitives(shape) -> list[tuple[Origin, str, dict[str, str]]]:
         out = [(shape.origin, "cylinder", {"radius": _fmt(shape.radius), "length": _fmt(shape.length)})]
         rotation = shape.origin.rotation
         for end in (-0.5, 0.5):  # sphere centres on the capsule axis (local z)
-            centre = tuple(float(v) for v in shape.origin.xyz + rotation @ (0.0, 0.0, end * shape.length))
-            out.append((Origin(centre, shape.origin.rpy), "sphere", {"radius": _fmt(shape.radius)}))
+            cx, cy, cz = (float(v) for v in shape.origin.xyz + rotation @ (0.0, 0.0, end * shape.length))
+            out.append((Origin((cx, cy, cz), shape.origin.rpy), "sphere", {"radius": _fmt(shape.radius)}))
         return out
     raise TypeError(f"unsupported shape {shape!r}")  # pragma: no cover - RobotSpec validates shapes
 
@@ -109,10 +109,10 @@ def build_urdf(spec: RobotSpec) -> ET.Element:
         _origin(inertial, Origin())
         ET.SubElement(inertial, "mass", value="0")
         ET.SubElement(inertial, "inertia", ixx="0", ixy="0", ixz="0", iyy="0", iyz="0", izz="0")
-        joint = ET.SubElement(robot, "joint", name=f"{name}_frame", type="fixed")
-        ET.SubElement(joint, "parent", link=foot)
-        ET.SubElement(joint, "child", link=name)
-        _origin(joint, Origin(offset))
+        frame_joint = ET.SubElement(robot, "joint", name=f"{name}_frame", type="fixed")
+        ET.SubElement(frame_joint, "parent", link=foot)
+        ET.SubElement(frame_joint, "child", link=name)
+        _origin(frame_joint, Origin(offset))
     return robot
 
 

@@ -498,7 +498,7 @@ class QuinticWalk:
         t2 = t1 + half
         channels = []
         for c in (X, Y, Z, PITCH):
-            knots = [start[c]]
+            knots: list[tuple[float, ...]] = [start[c]]  # (t, position[, velocity[, acceleration]])
             if c == PITCH:
                 pass  # a new pitch is reached over the whole horizon, not by t1: no violent nods
             elif c == Z and plan.kind != WalkState.STOP_STEP:

@@ -15,9 +15,9 @@ feet, not mirrored.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import Enum
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -185,6 +185,11 @@ class FootstepGeometry:
     foot_width: float = 0.106
     foot_distance: float = 0.1799
     min_foot_gap: float = 0.01  # feet closer than this count as interfering
+
+    if TYPE_CHECKING:  # derived in __post_init__; declared for the type checker only (no dataclass fields)
+        _half_gapped: tuple[float, float] = field(init=False)
+        kernel_params: np.ndarray = field(init=False)
+        _feet_at_origin: FeetState = field(init=False)
 
     def __post_init__(self) -> None:
         for name in ("foot_length", "foot_width", "foot_distance"):

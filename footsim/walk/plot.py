@@ -11,12 +11,16 @@ the footprints where each foot was put down.
 from __future__ import annotations
 
 import sys
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from footsim.walk.engine import QuinticWalk, WalkTrajectory
 from footsim.walk.footsteps import DoubleStep, FootstepGeometry, StepLimits
 from footsim.walk.params import WalkParams
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
 _DEFAULTS = {"out": None, "steps": "0.08,0,0,0.08,0,0", "vel": "", "n": "2", "stop": "true", "dt": "0.002"}
 _COLOURS = {"left": "tab:blue", "right": "tab:red", "trunk": "black"}
@@ -59,7 +63,7 @@ def plot_walk(trajectories: list[WalkTrajectory], engine: QuinticWalk, out: str,
     fig = plt.figure(figsize=(13, 8.5), constrained_layout=True)
     grid = fig.add_gridspec(4, 2, width_ratios=[1.4, 1])
     labels = [("x [m]", 0), ("y [m]", 1), ("z [m]", 2), ("yaw [rad]", 5)]
-    axes = []
+    axes: list[Axes] = []
     for row, (label, channel) in enumerate(labels):
         ax = fig.add_subplot(grid[row, 0], sharex=axes[0] if axes else None)
         for name, poses in series.items():
@@ -142,7 +146,7 @@ def main(argv: list[str] | None = None) -> None:
         if not all(np.isfinite(order.as_array()).all() for order in orders):
             raise ValueError("double steps must be finite numbers")
     except (ValueError, KeyError) as error:
-        raise SystemExit(f"footsim-walkplot: bad arguments ({error})")
+        raise SystemExit(f"footsim-walkplot: bad arguments ({error})") from None
     engine, trajectories = simulate(orders * repeats, stop=stop, params=params, control_dt=dt)
     plot_walk(trajectories, engine, args["out"], title=f"{title} ×{repeats}" + (", then stop" if stop else ""))
     print(f"wrote {args['out']}")

@@ -27,7 +27,7 @@ import os
 import tempfile
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, cast
 
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.core.override_parser.types import (
@@ -40,6 +40,7 @@ from hydra.core.override_parser.types import (
 )
 from hydra.core.plugins import Plugins
 from hydra.core.utils import JobReturn, JobStatus
+from hydra.plugins.launcher import Launcher
 from hydra.types import HydraContext, TaskFunction
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
@@ -172,7 +173,7 @@ class OptunaSweeperImpl:
         self.user_attrs_file = user_attrs_file
         self.config: DictConfig | None = None
         self.hydra_context: HydraContext | None = None
-        self.launcher = None
+        self.launcher: Launcher | None = None
 
     def setup(self, *, hydra_context: HydraContext, task_function: TaskFunction, config: DictConfig) -> None:
         self.config, self.hydra_context = config, hydra_context
@@ -191,7 +192,8 @@ class OptunaSweeperImpl:
             return cfg
         from hydra.utils import instantiate
 
-        cfg = OmegaConf.create(OmegaConf.to_container(cfg, resolve=True) if isinstance(cfg, DictConfig) else dict(cfg))
+        container = OmegaConf.to_container(cfg, resolve=True) if isinstance(cfg, DictConfig) else dict(cfg)
+        cfg = OmegaConf.create(cast(dict, container))  # a DictConfig's container is a dict
         if n_existing and cfg.get("seed") is not None:
             cfg.seed = int(cfg.seed) + n_existing
         sampler = instantiate(cfg)
@@ -214,7 +216,7 @@ class OptunaSweeperImpl:
             study_name=self.study_name,
             storage=url,
             sampler=self._sampler(n_existing),
-            directions=self.directions,
+            directions=cast("list[Literal['maximize', 'minimize']]", self.directions),  # checked in __init__
             load_if_exists=True,
         )
         found = [d.name.lower() for d in study.directions]
@@ -266,6 +268,8 @@ class OptunaSweeperImpl:
         return [float(v) for v in values], ""
 
     def _user_attrs(self, trial: optuna.Trial, ret: JobReturn) -> None:
+        if ret.hydra_cfg is None:
+            return
         try:
             job_dir = Path(str(ret.hydra_cfg.hydra.runtime.output_dir))
         except Exception:
@@ -296,6 +300,7 @@ class OptunaSweeperImpl:
                 runs[-1].append(item)
             else:
                 runs.append([item])
+        assert self.launcher is not None  # setup() instantiates it
         for run in runs:
             returns = self.launcher.launch([ov for _, ov in run], initial_job_idx=run[0][0].number)
             out += list(zip([t for t, _ in run], returns))

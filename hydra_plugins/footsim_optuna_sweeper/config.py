@@ -46,5 +46,6 @@ ConfigStore.instance().store(
 if importlib.util.find_spec("hydra_plugins.hydra_optuna_sweeper") is not None:
     warnings.warn(
         "both footsim's Optuna sweeper and the published hydra-optuna-sweeper are installed; they both "
-        "register hydra/sweeper=optuna. Uninstall hydra-optuna-sweeper (pip uninstall hydra-optuna-sweeper)."
+        "register hydra/sweeper=optuna. Uninstall hydra-optuna-sweeper (pip uninstall hydra-optuna-sweeper).",
+        stacklevel=1,  # the warning is about this plugin module itself, not about whoever imports it
     )
