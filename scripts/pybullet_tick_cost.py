@@ -64,9 +64,8 @@ def main(argv: list[str]) -> None:
             sim = backend.sim
             contacts = len(p.getContactPoints(sim.robot_id, physicsClientId=sim.client))
             med = statistics.median(times[name])
-            print(
-                f"| {name} | {med:.0f} | {min(times[name]):.0f}–{max(times[name]):.0f} | {med / base:.2f} | {contacts} |"
-            )
+            spread = f"{min(times[name]):.0f}–{max(times[name]):.0f}"
+            print(f"| {name} | {med:.0f} | {spread} | {med / base:.2f} | {contacts} |")
     finally:
         for backend in backends.values():
             backend.close()

@@ -60,7 +60,8 @@ def main(argv: list[str]) -> None:
     finally:
         backend.close()
     print(
-        f"{name} {overrides or ''}: {survived} of {len(seeds)} sequences walked {args['steps']} double steps without a fall"
+        f"{name} {overrides or ''}: {survived} of {len(seeds)} sequences walked {args['steps']} double steps "
+        "without a fall"
     )
 
 

@@ -1,9 +1,12 @@
-"""Tune the walk parameters of a 3D backend against the walk-check sequences (Optuna TPE).
+r"""Tune the walk parameters of a 3D backend against the walk-check sequences (Optuna TPE).
 
     python scripts/tune_walk.py backend=mujoco trials=300 out=/tmp/tune_mujoco.db
-    python scripts/tune_walk.py backend=pybullet stabilizer=1 bench=1 enqueue_current=1 trials=120 out=/tmp/tune_pybullet.db
-    python scripts/tune_walk.py backend=pybullet stabilizer=1 bench=1 freq=1.2:2.2 iterations=20,30,40 physics_hz=240,120 budget_ms=25 trials=300 out=/tmp/fast.db
-    python scripts/tune_walk.py backend=pybullet motor=servo walk=0 stabilizer=1 bench=1 iterations=10,20 physics_hz=100,120 trials=200 out=/tmp/servo.db
+    python scripts/tune_walk.py backend=pybullet stabilizer=1 bench=1 enqueue_current=1 trials=120 \
+        out=/tmp/tune_pybullet.db
+    python scripts/tune_walk.py backend=pybullet stabilizer=1 bench=1 freq=1.2:2.2 iterations=20,30,40 \
+        physics_hz=240,120 budget_ms=25 trials=300 out=/tmp/fast.db
+    python scripts/tune_walk.py backend=pybullet motor=servo walk=0 stabilizer=1 bench=1 iterations=10,20 \
+        physics_hz=100,120 trials=200 out=/tmp/servo.db
 
 Objective (minimised), per sequence of ``footsim.walkcheck.standard_sequences()``: a fall or a
 sim error costs ``2 + the share of double steps not executed``; otherwise the displacement
@@ -228,7 +231,8 @@ def main(argv: list[str]) -> None:
     def report(study, trial):
         if trial.value is not None and trial.number % 10 == 0 or study.best_trial.number == trial.number:
             print(
-                f"trial {trial.number}: {trial.value:.3f} best {study.best_value:.3f} {study.best_trial.user_attrs.get('detail')}",
+                f"trial {trial.number}: {trial.value:.3f} best {study.best_value:.3f} "
+                f"{study.best_trial.user_attrs.get('detail')}",
                 flush=True,
             )
 
