@@ -290,6 +290,7 @@ def _rss_mb():
     return psutil.Process(os.getpid()).memory_info().rss / 2**20
 
 
+@pytest.mark.memory
 def test_many_resets_and_create_close_cycles_do_not_leak(backend):
     sim = backend.sim
     joints = dict(backend.robot.walk_ready) | dict(

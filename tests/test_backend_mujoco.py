@@ -258,6 +258,7 @@ def _rss_mb():
     return psutil.Process(os.getpid()).memory_info().rss / 2**20
 
 
+@pytest.mark.memory
 def test_many_resets_and_create_close_cycles_do_not_leak(backend):
     for _ in range(50):  # warm up allocators
         backend.reset(EMPTY, np.random.default_rng(0))

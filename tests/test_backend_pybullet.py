@@ -276,6 +276,7 @@ def _rss_mb():
     return psutil.Process(os.getpid()).memory_info().rss / 2**20
 
 
+@pytest.mark.memory
 def test_create_reset_close_cycles_do_not_leak(backend):
     for _ in range(20):  # warm up allocators
         PybulletBackend(backend.robot, backend.walk).close()

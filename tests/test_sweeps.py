@@ -320,6 +320,7 @@ def _trials(db, name="toy"):
     return optuna.load_study(study_name=name, storage=f"sqlite:///{db}").get_trials(deepcopy=False)
 
 
+@pytest.mark.slow
 @needs_optuna
 def test_optuna_sweeper_on_a_toy_task_failures_and_resume(tmp_path):
     """Fast (no training): batches of 3, failing trials don't stop the study, resume adds trials."""
@@ -350,6 +351,7 @@ def test_optuna_sweeper_on_a_toy_task_failures_and_resume(tmp_path):
     assert not {t.params["x"] for t in trials[8:]} & first_params  # resumed sampler does not repeat itself
 
 
+@pytest.mark.slow
 @needs_optuna
 def test_optuna_sweeper_reruns_trials_left_running_by_a_killed_sweep(tmp_path):
     import optuna

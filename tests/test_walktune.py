@@ -74,6 +74,7 @@ def test_walktune_rejects_the_2d_backend():
         run(_compose("backend=pymunk"))
 
 
+@pytest.mark.slow
 @needs_pybullet
 @needs_optuna
 def test_two_trial_walk_sweep_completes(tmp_path):
