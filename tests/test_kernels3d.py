@@ -128,9 +128,9 @@ def test_control_tick_python_function_matches_the_compiled_one():
 
 
 def test_typed_entry_is_the_compiled_kernel_without_dispatch():
-    """``kernels2d.typed_entry``: the compiled code itself (not the dispatcher), returning what
+    """``footsim.compiled.typed_entry``: the compiled code itself (not the dispatcher), returning what
     the dispatcher returns; and the plain function where there is nothing compiled."""
-    from footsim.kernels2d import typed_entry
+    from footsim.compiled import typed_entry
     from footsim.kernels3d import bullet_control_state, bullet_control_tick
 
     rng = np.random.default_rng(2)

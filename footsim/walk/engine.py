@@ -2,7 +2,7 @@
 
 Behaviour follows the Bit-Bots / Rhoban *Quintic Walk* (thesis 3.3, ``shared/FACTS.md``);
 the implementation is our own, numpy (no simulator); the foot-overlap band of the swing-path
-check is the compiled kernel the footstep placement uses (:mod:`footsim.kernels2d`).
+check is the compiled kernel the footstep placement uses (:mod:`footsim.walk.kernels`).
 
 * The walk phase runs over [0, 1) per double step; phase < 0.5 is left support, so the right
   foot flies first (``DoubleStep.first``), then the left foot.
@@ -44,8 +44,8 @@ from functools import cached_property
 
 import numpy as np
 
-from footsim import kernels2d
 from footsim.geometry import Pose2D, mean_pose, wrap_angles
+from footsim.walk import kernels
 from footsim.walk.footsteps import DoubleStep, FeetState, Footstep, FootstepGeometry, Side
 from footsim.walk.ik import LEG_JOINT_NAMES, LegGeometry, legs_ik
 from footsim.walk.params import WalkParams
@@ -177,10 +177,10 @@ def _transform_trunk_state(state: np.ndarray, frame: Pose2D) -> np.ndarray:
 def _overlap_bands(x: np.ndarray, theta: np.ndarray, half_l: float, half_w: float) -> tuple[np.ndarray, np.ndarray]:
     """``footsteps._overlap_band_y`` per sample: the y interval where a foot at (x, y, theta)
     overlaps an identical foot at the origin; NaN where no y overlaps.  The band is the compiled
-    kernel ``FootstepGeometry.landing`` uses (:func:`footsim.kernels2d.overlap_band`), looped in
+    kernel ``FootstepGeometry.landing`` uses (:func:`footsim.walk.kernels.overlap_band`), looped in
     compiled code: the numpy version of the four axes cost more than the rest of a double step."""
     lo, hi = np.empty(x.shape), np.empty(x.shape)
-    kernels2d.overlap_bands(
+    kernels.overlap_bands(
         np.ascontiguousarray(x, dtype=float), np.cos(theta), np.sin(theta), float(half_l), float(half_w), lo, hi
     )
     return lo, hi
