@@ -15,18 +15,9 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from footsim.robots.spec import (
-    Box,
-    Inertial,
-    Joint,
-    Link,
-    RobotSpec,
-    ServoParams,
-    get_robot,
-    robot_from_config,
-    sole_frame_name,
-    wolfgang,
-)
+from footsim.robots.registry import get_robot, robot_from_config
+from footsim.robots.spec import Box, Inertial, Joint, Link, RobotSpec, ServoParams, sole_frame_name
+from footsim.robots.wolfgang import wolfgang
 from footsim.walk.ik import LegGeometry
 
 mujoco = pytest.importorskip("mujoco")

@@ -193,7 +193,7 @@ def example_paths(
     for k, scene in enumerate(scenes[:count]):
         runs = run_paths(scene, controllers, backend)
         if robot is None:
-            from footsim.robots.spec import get_robot
+            from footsim.robots.registry import get_robot
 
             robot = get_robot("wolfgang")
         path = root / f"paths_{k}.png"

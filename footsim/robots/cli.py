@@ -9,7 +9,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from footsim.robots.spec import ROBOTS, get_robot
+from footsim.robots.registry import ROBOTS, get_robot
 
 FORMATS = ("mjcf", "urdf")
 KEYS = {"robot": "robot name", "format": "one of " + "|".join(FORMATS), "out": "output file, or - for stdout"}
