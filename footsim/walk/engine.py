@@ -53,6 +53,9 @@ from footsim.walk.spline import PiecewiseQuintic, knots_state, sample_positions
 
 __all__ = ["LEG_JOINT_NAMES", "QuinticWalk", "WalkState", "WalkTrajectory"]
 
+DEFAULT_LEG = LegGeometry()  # Wolfgang-OP's leg (FACTS.md), the engine's default
+ORIGIN = Pose2D()
+
 
 class WalkState(IntEnum):
     IDLE = 0
@@ -197,7 +200,7 @@ class QuinticWalk:
         self,
         params: WalkParams,
         geometry: FootstepGeometry,
-        leg: LegGeometry = LegGeometry(),
+        leg: LegGeometry = DEFAULT_LEG,
         control_dt: float = 1.0 / 500.0,
         joint_limits=None,
     ):
@@ -243,7 +246,7 @@ class QuinticWalk:
 
     # --- state ---------------------------------------------------------------------------
 
-    def reset(self, pose: Pose2D = Pose2D()) -> None:
+    def reset(self, pose: Pose2D = ORIGIN) -> None:
         """Stand still (IDLE) with the feet at rest around ``pose`` (the navigation frame)."""
         self._state = WalkState.IDLE
         self._tick = 0
