@@ -1,8 +1,9 @@
-"""Calibrated 2D: ``footsim-calibrate backend=mujoco [n_steps=600] [seed=0] [scale=0.7] out=FILE.json``.
+"""Calibrated 2D: the execution model, fitted on a 3D backend (``footsim-calibrate``,
+:mod:`footsim.tools.calibrate`).
 
-Rolls out random double steps (with probability ``repeat`` the previous action again, so steady
-walking dominates as in a policy's gait) on a 3D backend from an empty scene, resetting after a
-fall.  For every double step it records
+:func:`collect` rolls out random double steps (with probability ``repeat`` the previous action
+again, so steady walking dominates as in a policy's gait) on a 3D backend from an empty scene,
+resetting after a fall.  For every double step it records
 
 * the displacement the planar footstep geometry predicts (what the 2D backend executes): the
   navigation frame (mean of the two feet) after the step in the frame before it, from the walk
@@ -11,22 +12,22 @@ fall.  For every double step it records
   the frame of the base before it (``StepResult.pose``);
 * whether it fell.
 
-(uniform in ``[-1, 1]`` times a magnitude drawn in ``[0.25, 1] × scale`` per new action) and fits the **execution model**: per output (dx, dy, dθ) a linear regression on the predicted
-displacement (``features=dx,dy,dtheta`` by default; ``abs_dx, abs_dy, abs_dtheta`` can be added)
-with intercept and residual σ, and the fall probability per double step as a logistic regression on
-the absolute action values.  ``backend=pymunk backend.execution_model=FILE`` makes the 2D
-backend execute through it (:class:`ExecutionModel`, ``footsim.backends.pymunk2d``).
+Actions are uniform in ``[-1, 1]`` times a magnitude drawn in ``[0.25, 1] × scale`` per new
+action.  :func:`fit` fits the **execution model**: per output (dx, dy, dθ) a linear regression on
+the predicted displacement (``features=dx,dy,dtheta`` by default; ``abs_dx, abs_dy, abs_dtheta``
+can be added) with intercept and residual σ, and the fall probability per double step as a
+logistic regression on the absolute action values.  ``backend=pymunk backend.execution_model=FILE``
+makes the 2D backend execute through it (:class:`ExecutionModel`, ``footsim.backends.pymunk2d``).
 
-``footsim-calibrate compare=FILE.json [backend=mujoco] [out=FILE.md]`` runs the walkcheck
-sequences on pymunk with and without the model and on the 3D backend and prints the
-consistency table (final planar pose differences).
+:func:`consistency` (``footsim-calibrate compare=FILE.json``) runs the walkcheck sequences on
+pymunk with and without the model and on the 3D backend and builds the consistency table (final
+planar pose differences).
 """
 
 from __future__ import annotations
 
 import json
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -330,72 +331,3 @@ def consistency(model_path: str, backend3d: str = "mujoco", seed: int = 0) -> tu
     ]
     lines += ["", f"{backend3d} fell in: {', '.join(falls) if falls else 'none'}"]
     return rows, "\n".join(lines)
-
-
-# -- command ------------------------------------------------------------------------------------
-USAGE = (
-    "usage: footsim-calibrate backend=mujoco [n_steps=800] [seed=0] [scale=1.0] [repeat=0.9] "
-    "[features=dx,dy,dtheta] out=FILE.json\n"
-    "       footsim-calibrate compare=FILE.json [backend=mujoco] [out=FILE.md]"
-)
-
-
-def main(argv: list[str] | None = None) -> None:
-    from footsim.backends.base import require_known_backends
-    from footsim.rl.common import write_json
-    from footsim.utils import atomic_write_text, parse_kv_args
-
-    args = parse_kv_args(
-        sys.argv[1:] if argv is None else argv,
-        {
-            "backend": "mujoco",
-            "n_steps": "800",
-            "seed": "0",
-            "scale": "1.0",
-            "repeat": "0.9",
-            "features": ",".join(DEFAULT_FEATURES),
-            "out": "",
-            "compare": "",
-        },
-        "footsim-calibrate",
-    )
-    require_known_backends([args["backend"]], "footsim-calibrate")
-    if args["compare"]:
-        _, table = consistency(args["compare"], args["backend"], int(args["seed"]))
-        print(table)
-        if args["out"]:
-            atomic_write_text(args["out"], table + "\n")
-        return
-    if not args["out"]:
-        raise SystemExit(f"footsim-calibrate: out=FILE.json is required\n{USAGE}")
-    try:
-        n_steps, seed = int(args["n_steps"]), int(args["seed"])
-        scale, repeat = float(args["scale"]), float(args["repeat"])
-    except ValueError as err:
-        raise SystemExit(f"footsim-calibrate: bad number ({err})\n{USAGE}")
-    if n_steps <= 0 or not 0 < scale <= 1 or not 0 <= repeat < 1:
-        raise SystemExit("footsim-calibrate: need n_steps > 0, 0 < scale <= 1, 0 <= repeat < 1")
-    if args["backend"] == "pymunk":
-        raise SystemExit("footsim-calibrate: calibrate against a 3D backend (mujoco, dm_control, pybullet)")
-    from footsim.walkcheck import make_backend
-
-    backend = make_backend(args["backend"])
-    try:
-        data = collect(backend, n_steps, seed, scale, repeat)
-    finally:
-        backend.close()
-    names = [f for f in args["features"].split(",") if f]
-    model = fit(
-        data,
-        meta={"backend": args["backend"], "n_steps": n_steps, "seed": seed, "scale": scale, "repeat": repeat},
-        names=names,
-    )
-    write_json(args["out"], model)
-    print(f"{model['n_samples']} double steps, {model['n_falls']} falls on {args['backend']}")
-    for k, name in enumerate(OUTPUTS):
-        terms = " ".join(f"{c:+.3f}·{f}" for c, f in zip(model["coef"][k], names))
-        print(
-            f"  {name} = {terms} {model['intercept'][k]:+.4f}   σ={model['residual_std'][k]:.4f}  "
-            f"R²={model['r2'][k]:.3f}  (uncorrected 2D RMSE {model['uncorrected_rmse'][k]:.4f})"
-        )
-    print(f"execution model written to {args['out']}")

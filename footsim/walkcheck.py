@@ -1,4 +1,4 @@
-"""``footsim-walkcheck [backends=mujoco,dm_control,pybullet] [out=FILE.md]``: does it walk?
+"""Open-loop walking checks (``footsim-walkcheck``, :mod:`footsim.tools.walkcheck`): does it walk?
 
 Runs a standard set of open-loop double-step sequences on each backend and compares the
 executed displacement with the commanded one — the displacement the planar footstep geometry
@@ -11,7 +11,6 @@ differences per backend pair, the 2D backend included.
 from __future__ import annotations
 
 import math
-import sys
 from dataclasses import dataclass
 from itertools import combinations
 
@@ -144,22 +143,3 @@ def walkcheck(backends: list[str]) -> tuple[dict, str]:
             dy.append(abs(wrap_angle(pa.theta - pb.theta)))
         lines.append(f"| {a} – {b} | {np.mean(dp):.3f} | {np.max(dp):.3f} | {np.mean(dy):.3f} | {np.max(dy):.3f} |")
     return results, "\n".join(lines)
-
-
-def main(argv: list[str] | None = None) -> None:
-    from footsim.utils import atomic_write_text, parse_kv_args
-
-    args = parse_kv_args(
-        sys.argv[1:] if argv is None else argv,
-        {"backends": "mujoco,dm_control,pybullet", "out": ""},
-        "footsim-walkcheck",
-    )
-    from footsim.backends.base import require_known_backends
-
-    backends = [b for b in args["backends"].split(",") if b]
-    require_known_backends(backends, "footsim-walkcheck")
-    backends = [b for b in backends if b != "pymunk"]  # the consistency report adds 2D itself
-    _, table = walkcheck(backends)
-    print(table)
-    if args["out"]:
-        atomic_write_text(args["out"], table + "\n")

@@ -1,4 +1,5 @@
-"""``footsim-walktune backend=B [walk.KEY=V ...]``: how fast does this walk go without falling?
+"""The walk-tuning objective (``footsim-walktune``, :mod:`footsim.tools.walktune`): how fast does
+this walk go without falling?
 
 Measures the Hamburg Bit-Bots' walk-tuning objective (shared/FACTS.md, "Quintic walk engine")
 
@@ -231,23 +232,3 @@ def enqueue_walk(storage: str, study_name: str, walk: str | dict, keys=None, fix
     enqueued = {f"walk.{k}": float(values[k]) for k in keys}
     study.enqueue_trial(enqueued, user_attrs={"enqueued": str(walk) if isinstance(walk, str) else "mapping"})
     return enqueued
-
-
-def _main(cfg):
-    from hydra.core.hydra_config import HydraConfig
-
-    result = run(cfg, Path(HydraConfig.get().runtime.output_dir))
-    print(format_result(result), flush=True)
-    return result["objective"]
-
-
-def main() -> None:
-    import hydra
-
-    from footsim.config import conf_dir
-
-    hydra.main(config_path=str(conf_dir()), config_name="walktune", version_base="1.3")(_main)()
-
-
-if __name__ == "__main__":
-    main()

@@ -489,7 +489,7 @@ def test_mujoco_and_pybullet_agree(spec, mj, bullet):
 
 
 def test_cli_writes_models(tmp_path, capsys):
-    from footsim.robots.cli import main
+    from footsim.tools.model import main
 
     out = tmp_path / "w.xml"
     assert main(["robot=wolfgang", "format=mjcf", f"out={out}"]) == 0
@@ -512,7 +512,7 @@ def test_cli_writes_models(tmp_path, capsys):
     ],
 )
 def test_cli_rejects_bad_arguments(argv, message, capsys):
-    from footsim.robots.cli import main
+    from footsim.tools.model import main
 
     assert main(argv) == 2
     assert message in capsys.readouterr().err

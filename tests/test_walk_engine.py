@@ -374,7 +374,7 @@ def test_reset_places_the_feet_around_a_pose():
 
 
 def test_walkplot_cli_writes_a_png(tmp_path):
-    from footsim.walk.plot import main
+    from footsim.tools.walkplot import main
 
     out = tmp_path / "walk.png"
     main([f"out={out}", "steps=0.05,0,0.2,0.05,0.03,0.2", "n=1", "stop=false"])

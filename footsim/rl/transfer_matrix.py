@@ -1,4 +1,4 @@
-"""Cross-backend transfer matrix: ``footsim-transfer-matrix [backends=a,b] [runs=DIR] [key=value ...]``.
+"""Cross-backend transfer matrix (``footsim-transfer-matrix``, :mod:`footsim.tools.transfer_matrix`).
 
 1. Trains one policy per backend with a Hydra multirun of ``footsim-train``
    (``footsim-train -m backend=a,b <train overrides> hydra.sweep.dir=OUT/train``), or reuses the
@@ -27,12 +27,6 @@ from pathlib import Path
 
 from omegaconf import OmegaConf
 
-USAGE = (
-    "usage: footsim-transfer-matrix [backends=pymunk,mujoco] [eval_backends=...] [runs=MULTIRUN_DIR] [out=DIR] "
-    "[scenes=FILE | n_scenes=N scenes_seed=S] [randomization=none,default] [launcher=local] "
-    "[footsim-train overrides ...]"
-)
-LIST_KEYS = ("backends", "eval_backends", "randomization")
 METRICS = (
     "episodes",
     "success",
@@ -46,46 +40,6 @@ METRICS = (
     "success_steps_std",
 )
 COLUMNS = ("train_backend", "eval_backend", "randomization", *METRICS, "run", "eval_dir")
-
-
-def _defaults():
-    from footsim.config import conf_dir
-
-    return OmegaConf.load(conf_dir() / "transfer_matrix.yaml")
-
-
-def parse_args(argv: list[str]) -> tuple[dict, list[str]]:
-    """This command's options (conf/transfer_matrix.yaml + overrides) and the footsim-train overrides."""
-    cfg = OmegaConf.to_container(_defaults())
-    train_overrides = []
-    for arg in argv:
-        if arg in ("-h", "--help"):
-            raise SystemExit(USAGE)
-        if "=" not in arg:
-            raise SystemExit(f"footsim-transfer-matrix: expected key=value, got {arg!r}\n{USAGE}")
-        key, value = arg.split("=", 1)
-        if key not in cfg:
-            train_overrides.append(arg)
-            continue
-        if key in LIST_KEYS:
-            items = [v.strip() for v in value.strip("[]").split(",") if v.strip()]
-            cfg[key] = items or None
-        else:
-            parsed = OmegaConf.from_dotlist([f"v={value}"]).v  # YAML typing: ints, bools, null
-            cfg[key] = parsed
-    if not cfg["backends"] and not cfg["runs"]:
-        raise SystemExit("footsim-transfer-matrix: backends= is empty")
-    if not cfg["randomization"]:
-        cfg["randomization"] = ["none"]
-    from footsim.backends.base import require_known_backends
-
-    require_known_backends((cfg["backends"] or []) + (cfg["eval_backends"] or []), "footsim-transfer-matrix")
-    if cfg["runs"] and train_overrides:
-        raise SystemExit(
-            f"footsim-transfer-matrix: runs= reuses trained policies; unknown keys {train_overrides} "
-            f"(own keys: {sorted(cfg)})"
-        )
-    return cfg, train_overrides
 
 
 # -- 1. training --------------------------------------------------------------------------------
@@ -358,7 +312,8 @@ def transfer_matrix(cfg: dict, train_overrides: list[str]) -> list[dict]:
         print(f"note: the runs were trained on different tasks {sorted(tasks)}; all are evaluated on one scene file")
     scenes = scene_file(cfg, configs[runs[0]], out)
     print(
-        f"{len(runs)} {'policy' if len(runs) == 1 else 'policies'} (trained on {', '.join(train_backends)}) x eval backends {evals} x randomization "
+        f"{len(runs)} {'policy' if len(runs) == 1 else 'policies'} (trained on {', '.join(train_backends)}) "
+        f"x eval backends {evals} x randomization "
         f"{cfg['randomization']}; scenes: {scenes}",
         flush=True,
     )
@@ -386,8 +341,3 @@ def transfer_matrix(cfg: dict, train_overrides: list[str]) -> list[dict]:
     print(table)
     print(f"transfer matrix in {out} (matrix.csv, matrix.md, heatmap_success.png, heatmap_success_time.png)")
     return rows
-
-
-def main(argv: list[str] | None = None) -> None:
-    cfg, overrides = parse_args(sys.argv[1:] if argv is None else argv)
-    transfer_matrix(cfg, overrides)
