@@ -223,9 +223,9 @@ def test_quick_status_equals_the_full_check(name):
     pytest.importorskip("mujoco")
     if name == "dm_control":
         pytest.importorskip("dm_control")
+    from footsim.calibration.walkcheck import make_backend
     from footsim.geometry import Pose2D
     from footsim.scene import Scene
-    from footsim.walkcheck import make_backend
 
     backend = make_backend(name)
     try:

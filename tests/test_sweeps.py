@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 from hydra import compose, initialize_config_dir
 
-from footsim import sweeps
 from footsim.config import conf_dir
+from footsim.rl import sweeps
 from footsim.tools import sweep_summary
 
 TINY = [

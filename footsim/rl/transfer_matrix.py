@@ -19,13 +19,21 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 import math
 import subprocess
 import sys
 import time
 from pathlib import Path
 
+import numpy as np
 from omegaconf import OmegaConf
+
+from footsim import config as fconf
+from footsim.rl.common import CONFIG_FILE, MODEL_FILE, load_run_config
+from footsim.rl.evaluate import evaluate_run
+from footsim.tasks.scenes import sample_scenes, save_scenes
+from footsim.utils import atomic_save, atomic_write_text
 
 METRICS = (
     "episodes",
@@ -70,7 +78,6 @@ def train_policies(
 
 def find_runs(root: Path) -> list[Path]:
     """Run directories (config.yaml + model.zip) below ``root`` (or ``root`` itself), in job order."""
-    from footsim.rl.common import CONFIG_FILE, MODEL_FILE
 
     root = Path(root)
     found = {
@@ -88,8 +95,6 @@ def find_runs(root: Path) -> list[Path]:
 
 # -- 2. evaluation ------------------------------------------------------------------------------
 def scene_file(cfg: dict, run_cfg, out: Path) -> Path:
-    from footsim import config as fconf
-    from footsim.tasks.scenes import sample_scenes, save_scenes
 
     if cfg["scenes"]:
         return Path(cfg["scenes"]).expanduser().resolve()
@@ -108,7 +113,6 @@ def scene_file(cfg: dict, run_cfg, out: Path) -> Path:
 def eval_config(run_cfg, eval_backend: str, randomization: str):
     """The run's config moved to ``eval_backend`` (with that backend's walk unless it is the
     training backend) under the ``randomization`` preset — as ``footsim-eval backend=B randomization=R``."""
-    from footsim import config as fconf
 
     cfg = OmegaConf.create(OmegaConf.to_container(run_cfg, resolve=True))
     OmegaConf.set_struct(cfg, False)
@@ -122,9 +126,6 @@ def eval_config(run_cfg, eval_backend: str, randomization: str):
 def evaluate_cell(
     run_dir: Path, run_cfg, eval_backend: str, randomization: str, scenes: Path, cell_dir: Path, cfg: dict
 ) -> dict:
-    import json
-
-    from footsim.rl.evaluate import evaluate_run
 
     summary_path = cell_dir / "summary.json"
     if summary_path.is_file():
@@ -150,7 +151,6 @@ def _fmt(v) -> str:
 
 
 def write_csv(path: Path, rows: list[dict]) -> None:
-    from footsim.utils import atomic_write_text
 
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=list(COLUMNS), extrasaction="ignore")
@@ -162,7 +162,6 @@ def write_csv(path: Path, rows: list[dict]) -> None:
 
 def aggregate(rows: list[dict], metric: str, randomization: str, train: list[str], evals: list[str]):
     """Matrix [train backend, eval backend] of ``metric``, mean over runs (NaN where none)."""
-    import numpy as np
 
     m = np.full((len(train), len(evals)), np.nan)
     for i, tb in enumerate(train):
@@ -220,9 +219,6 @@ def plot_heatmap(
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    import numpy as np
-
-    from footsim.utils import atomic_save
 
     n = len(randomizations)
     fig, axes = plt.subplots(
@@ -257,7 +253,6 @@ def plot_heatmap(
 
 
 def write_outputs(out: Path, rows: list[dict], train: list[str], evals: list[str], randomizations: list[str]) -> str:
-    from footsim.utils import atomic_write_text
 
     write_csv(out / "matrix.csv", rows)
     table = markdown(rows, train, evals, randomizations)
@@ -290,7 +285,6 @@ def write_outputs(out: Path, rows: list[dict], train: list[str], evals: list[str
 
 # -- driver -------------------------------------------------------------------------------------
 def transfer_matrix(cfg: dict, train_overrides: list[str]) -> list[dict]:
-    from footsim.rl.common import load_run_config
 
     out = Path(cfg["out"] or time.strftime("outputs/transfer_matrix/%Y-%m-%d/%H-%M-%S")).expanduser().resolve()
     out.mkdir(parents=True, exist_ok=True)

@@ -1,16 +1,16 @@
 """``footsim-calibrate backend=mujoco out=FILE.json`` fits the execution model of the 2D backend on
 a 3D backend; ``footsim-calibrate compare=FILE.json`` prints its consistency table
-(:mod:`footsim.calibrate`)."""
+(:mod:`footsim.calibration.execution_model`)."""
 
 from __future__ import annotations
 
 import sys
 
 from footsim.backends.base import require_known_backends
-from footsim.calibrate import DEFAULT_FEATURES, OUTPUTS, collect, consistency, fit
+from footsim.calibration.execution_model import DEFAULT_FEATURES, OUTPUTS, collect, fit
+from footsim.calibration.walkcheck import execution_model_consistency, make_backend
 from footsim.rl.common import write_json
 from footsim.utils import atomic_write_text, parse_kv_args
-from footsim.walkcheck import make_backend
 
 # -- command ------------------------------------------------------------------------------------
 USAGE = (
@@ -38,7 +38,7 @@ def main(argv: list[str] | None = None) -> None:
     )
     require_known_backends([args["backend"]], "footsim-calibrate")
     if args["compare"]:
-        _, table = consistency(args["compare"], args["backend"], int(args["seed"]))
+        _, table = execution_model_consistency(args["compare"], args["backend"], int(args["seed"]))
         print(table)
         if args["out"]:
             atomic_write_text(args["out"], table + "\n")

@@ -1,11 +1,11 @@
 """``footsim-sweep-summary dir=MULTIRUN_DIR [out=PREFIX]``: every job of a Hydra multirun in one
-table (:func:`footsim.sweeps.write_summary`)."""
+table (:func:`footsim.rl.sweeps.write_summary`)."""
 
 from __future__ import annotations
 
 import sys
 
-from footsim import sweeps
+from footsim.rl import sweeps
 
 USAGE = "usage: footsim-sweep-summary dir=MULTIRUN_DIR [out=PREFIX]"
 

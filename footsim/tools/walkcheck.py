@@ -1,13 +1,13 @@
 """``footsim-walkcheck [backends=mujoco,dm_control,pybullet] [out=FILE.md]``: the open-loop walking
-checks on each backend and the consistency report (:func:`footsim.walkcheck.walkcheck`)."""
+checks on each backend and the consistency report (:func:`footsim.calibration.walkcheck.walkcheck`)."""
 
 from __future__ import annotations
 
 import sys
 
 from footsim.backends.base import require_known_backends
+from footsim.calibration.walkcheck import walkcheck
 from footsim.utils import atomic_write_text, parse_kv_args
-from footsim.walkcheck import walkcheck
 
 
 def main(argv: list[str] | None = None) -> None:

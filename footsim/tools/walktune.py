@@ -1,5 +1,5 @@
 """``footsim-walktune backend=B [walk.KEY=V ...]``: the walk-tuning objective of the composed
-``walk`` group on a 3D backend (:func:`footsim.walktune.run`), as a Hydra app (``-m +hpo=...``
+``walk`` group on a 3D backend (:func:`footsim.calibration.walktune.run`), as a Hydra app (``-m +hpo=...``
 sweeps it with footsim's Optuna sweeper)."""
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ from pathlib import Path
 import hydra
 from hydra.core.hydra_config import HydraConfig
 
+from footsim.calibration.walktune import format_result, run
 from footsim.config import conf_dir
-from footsim.walktune import format_result, run
 
 
 def _main(cfg) -> float:

@@ -10,6 +10,7 @@ checks against pymunk's own shape queries of the same polygons against the same 
 
 - :mod:`footsim.backends.pymunk2d.backend`: :class:`Pymunk2DBackend`, the backend itself.
 - :mod:`footsim.backends.pymunk2d.collision`: the compiled collision kernels.
+- :mod:`footsim.backends.pymunk2d.render`: the top-view image of an episode (PIL).
 """
 
 from footsim.backends.pymunk2d.backend import Pymunk2DBackend, box_hits_circles

@@ -30,6 +30,8 @@ import pymunk
 
 from footsim.backends.base import Backend, RenderOverlay, StepResult
 from footsim.backends.pymunk2d import collision
+from footsim.backends.pymunk2d.render import draw_scene
+from footsim.calibration.execution_model import ExecutionModel
 from footsim.geometry import Pose2D, mean_pose
 from footsim.robots.spec import RobotSpec
 from footsim.scene import Scene, circle_array
@@ -106,8 +108,6 @@ class Pymunk2DBackend(Backend):
         self.collision_distance = collision_distance
         self.execution_model = None
         if execution_model:  # commanded -> executed displacement fitted on a 3D backend (footsim-calibrate)
-            from footsim.calibrate import ExecutionModel
-
             self.execution_model = ExecutionModel.load(execution_model, noise=bool(execution_noise))
         self.execution_falls = bool(execution_falls)
         self.robot = robot
@@ -287,7 +287,6 @@ class Pymunk2DBackend(Backend):
 
     # -- rendering ------------------------------------------------------------------------
     def render(self, overlay: RenderOverlay | None = None) -> np.ndarray:
-        from footsim.render2d import draw_scene
 
         return draw_scene(self.scene, self.history, self.nav_history, self.robot, overlay)
 

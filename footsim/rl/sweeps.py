@@ -23,6 +23,13 @@ import traceback
 from pathlib import Path
 from typing import Any
 
+from hydra.core.utils import JobStatus
+from hydra.types import RunMode
+from omegaconf import OmegaConf
+
+from footsim.rl.common import write_json
+from footsim.utils import atomic_write_text
+
 FAILED_FILE = "FAILED.json"
 SUMMARY_FILE = Path("eval") / "summary.json"
 # eval/summary.json keys shown first, in this order; other scalar keys follow alphabetically
@@ -51,7 +58,6 @@ class JobStatusCallback(_HydraCallback):
     """Writes ``FAILED.json`` into a job's run dir when its task function raised."""
 
     def on_job_end(self, config, job_return, **kwargs: Any) -> None:
-        from hydra.core.utils import JobStatus
 
         try:
             out_dir = Path(str(job_return.hydra_cfg.hydra.runtime.output_dir))
@@ -68,7 +74,6 @@ class JobStatusCallback(_HydraCallback):
             "overrides": list(job_return.overrides or []),
             "job_num": _job_num(job_return),
         }
-        from footsim.rl.common import write_json
 
         write_json(marker, record)
         if _multirun(job_return):
@@ -81,7 +86,6 @@ class JobStatusCallback(_HydraCallback):
 
 
 def _multirun(job_return) -> bool:
-    from hydra.types import RunMode
 
     try:
         return job_return.hydra_cfg.hydra.mode == RunMode.MULTIRUN
@@ -112,7 +116,6 @@ def find_jobs(sweep_dir: Path) -> list[Path]:
 
 
 def _read_overrides(job: Path) -> dict[str, str]:
-    from omegaconf import OmegaConf
 
     overrides: dict[str, str] = {}
     for item in OmegaConf.to_container(OmegaConf.load(job / ".hydra" / "overrides.yaml")) or []:
@@ -218,7 +221,6 @@ def to_markdown(rows: list[dict], title: str = "") -> str:
 
 
 def write_summary(sweep_dir: str | Path, out_prefix: str | Path | None = None) -> tuple[Path, Path, list[dict]]:
-    from footsim.utils import atomic_write_text
 
     sweep_dir = Path(sweep_dir)
     if not sweep_dir.is_dir():

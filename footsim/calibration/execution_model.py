@@ -19,7 +19,8 @@ can be added) with intercept and residual σ, and the fall probability per doubl
 logistic regression on the absolute action values.  ``backend=pymunk backend.execution_model=FILE``
 makes the 2D backend execute through it (:class:`ExecutionModel`, ``footsim.backends.pymunk2d``).
 
-:func:`consistency` (``footsim-calibrate compare=FILE.json``) runs the walkcheck sequences on
+:func:`footsim.calibration.walkcheck.execution_model_consistency` (``footsim-calibrate
+compare=FILE.json``) runs the walkcheck sequences on
 pymunk with and without the model and on the 3D backend and builds the consistency table (final
 planar pose differences).
 """
@@ -31,6 +32,11 @@ import math
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
+
+from footsim.geometry import Pose2D
+from footsim.scene import Scene
+from footsim.walk.footsteps import DoubleStep, FootstepGeometry
 
 FORMAT = "footsim-execution-model"
 VERSION = 1
@@ -149,9 +155,6 @@ def collect(
 ) -> dict[str, np.ndarray]:
     """Random double steps on ``backend``; arrays ``action (n,6), predicted (n,3), executed (n,3),
     fell (n,)`` (``executed`` is NaN where the robot fell or the sim failed)."""
-    from footsim.geometry import Pose2D
-    from footsim.scene import Scene
-    from footsim.walk.footsteps import DoubleStep, FootstepGeometry
 
     rng = np.random.default_rng(seed)
     robot = backend.robot
@@ -163,8 +166,6 @@ def collect(
     resets = 0
     iterator = range(n_steps)
     if progress:
-        from tqdm import tqdm
-
         iterator = tqdm(iterator, desc=f"calibrating on {backend.name}", unit="double step", leave=False)
     for _ in iterator:
         if pose is None:
@@ -260,74 +261,3 @@ def fit(data: dict[str, np.ndarray], meta: dict | None = None, names=DEFAULT_FEA
         "uncorrected_rmse": np.sqrt((raw**2).mean(axis=0)).tolist(),
         "meta": meta or {},
     }
-
-
-# -- 2D vs 3D consistency -----------------------------------------------------------------------
-def consistency(model_path: str, backend3d: str = "mujoco", seed: int = 0) -> tuple[list[dict], str]:
-    """Walkcheck sequences on pymunk (geometry), pymunk + model (mean, and with noise) and the 3D
-    backend: final planar pose differences to the 3D backend, over the full sequences (as
-    ``footsim-walkcheck``) and with the 2D runs cut at the double step where the 3D robot fell."""
-    from footsim import config as fconf
-    from footsim.geometry import wrap_angle
-    from footsim.walkcheck import Sequence, make_backend, run_sequence, standard_sequences
-
-    ExecutionModel.load(model_path)  # a bad file fails before the 3D runs
-    sequences = standard_sequences()
-    ref_backend = make_backend(backend3d)
-    try:
-        ref = {s.name: run_sequence(ref_backend, s, seed=seed) for s in sequences}
-    finally:
-        ref_backend.close()
-    walk = fconf.build_walk(fconf.load_preset("walk", fconf.walk_preset_for("pymunk")))
-    robot = fconf.build_robot("wolfgang")
-    variants = {
-        "pymunk (geometry)": {},
-        "pymunk + model (mean)": {"execution_model": model_path, "execution_noise": False},
-        "pymunk + model (with noise)": {"execution_model": model_path},
-    }
-    rows = []
-    for label, options in variants.items():
-        backend = fconf.build_backend({"name": "pymunk", **options}, robot, walk)
-        try:
-            for cut in (False, True):
-                dp, dy, dyaw = [], [], []
-                for s in sequences:
-                    seq = s
-                    if cut and ref[s.name]["steps"] < len(s.actions):
-                        seq = Sequence(s.name, s.actions[: ref[s.name]["steps"]], s.measure, s.stop)
-                    ra = run_sequence(backend, seq, seed=seed)
-                    a, b = ra["pose"], ref[s.name]["pose"]
-                    dyaw.append(abs(ra["yaw"] - ref[s.name]["yaw"]))
-                    dp.append(math.hypot(a.x - b.x, a.y - b.y))
-                    dy.append(abs(wrap_angle(a.theta - b.theta)))
-                rows.append(
-                    {
-                        "pair": f"{label} – {backend3d}",
-                        "sequences": "cut at 3D fall" if cut else "full",
-                        "pos_mean": float(np.mean(dp)),
-                        "pos_max": float(np.max(dp)),
-                        "yaw_mean": float(np.mean(dy)),
-                        "yaw_max": float(np.max(dy)),
-                        "turn_mean": float(np.mean(dyaw)),
-                        "turn_max": float(np.max(dyaw)),
-                    }
-                )
-        finally:
-            backend.close()
-    lines = [
-        "| pair | sequences | position diff mean [m] | max [m] | yaw diff mean [rad] | max [rad] "
-        "| total turn diff mean [rad] | max [rad] |",
-        "|---|---|---|---|---|---|---|---|",
-    ]
-    for r in sorted(rows, key=lambda r: r["sequences"] != "full"):
-        lines.append(
-            f"| {r['pair']} | {r['sequences']} | {r['pos_mean']:.3f} | {r['pos_max']:.3f} | "
-            f"{r['yaw_mean']:.3f} | {r['yaw_max']:.3f} | {r['turn_mean']:.3f} | {r['turn_max']:.3f} |"
-        )
-    falls = [
-        f"{s.name} ({ref[s.name]['steps']}/{len(s.actions)})"
-        for s in sequences
-        if ref[s.name]["fell"] or ref[s.name]["sim_error"]
-    ]
-    lines += ["", f"{backend3d} fell in: {', '.join(falls) if falls else 'none'}"]
-    return rows, "\n".join(lines)
