@@ -442,7 +442,7 @@ def test_placement_matches_the_python_reference(geometry):
         feet = geometry.initial_feet(start)
         assert geometry.execute(feet, double_step) == _reference_execute(geometry, feet, double_step)
         offset = Pose2D(*rng.normal(0, 0.01, 3))
-        shift = lambda pose: pose.compose(offset)  # noqa: E731  (a deterministic perturbation)
+        shift = lambda pose, offset=offset: pose.compose(offset)  # noqa: E731  (a deterministic perturbation)
         assert geometry.execute(feet, double_step, shift) == _reference_execute(geometry, feet, double_step, shift)
     assert interfered > 500
 

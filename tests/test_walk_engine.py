@@ -21,9 +21,10 @@ from footsim.walk.ik import leg_fk, rpy_from_rotation
 
 LIMITS = StepLimits(0.156, 0.103, 0.764)
 LEG = LegGeometry()
+PARAMS = WalkParams()
 
 
-def make_engine(params: WalkParams = WalkParams(), control_dt: float = 1 / 500, **kwargs) -> QuinticWalk:
+def make_engine(params: WalkParams = PARAMS, control_dt: float = 1 / 500, **kwargs) -> QuinticWalk:
     geometry = FootstepGeometry(LIMITS, foot_distance=params.foot_distance)
     return QuinticWalk(params, geometry, LEG, control_dt, **kwargs)
 

@@ -92,7 +92,6 @@ def error_ratio(executed: dict, commanded: dict, measure: str) -> float:
 
 
 def make_backend(name: str):
-
     walk = fconf.build_walk(fconf.load_preset("walk", fconf.walk_preset_for(name)))
     robot = fconf.build_robot("wolfgang")
     return fconf.build_backend(fconf.load_preset("backend", {"name": name}), robot, walk)

@@ -61,7 +61,6 @@ WEIGHTS = {"v_forward": 1.0, "v_backward": 1.0, "v_lateral": 2.0, "v_turn": 0.2}
 
 
 def _order(backend, pattern, level: float, command: str):
-
     x, y, yaw = (level * p for p in pattern)
     if command == "action":
         return DoubleStep.from_action([x, y, yaw, x, y, yaw], backend.robot.step_limits)

@@ -184,7 +184,6 @@ def plot_paths(path: Path, scene, runs: dict, robot) -> None:
 def example_paths(
     root: Path, scenes_file: Path, backend: str = "pymunk", count: int = 4, policy_run: str | None = None
 ) -> list[Path]:
-
     scenes = load_scenes(scenes_file)
     controllers = {name: (lambda env, n=name: make_controller(env, _conf(n))) for name in ("velocity", "footstep")}
     if policy_run:
@@ -208,7 +207,6 @@ def _conf(name: str) -> dict:
 
 
 def main(argv: list[str] | None = None) -> None:
-
     argv = sys.argv[1:] if argv is None else argv
     if not argv:
         raise SystemExit("usage: python -m footsim.planners.report OUT [backend=pymunk] [paths=4] [policy_run=RUN]")

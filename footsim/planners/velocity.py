@@ -129,7 +129,6 @@ class VelocityController:
     kind = "velocity"
 
     def __init__(self, limits: StepLimits, walk, geometry: FootstepGeometry, params: VelocityParams = VelocityParams()):
-
         self.params = params
         self.limits = limits
         self.engine = QuinticWalk(walk, geometry)  # only its velocity-order rule is used

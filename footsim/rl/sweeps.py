@@ -58,7 +58,6 @@ class JobStatusCallback(_HydraCallback):
     """Writes ``FAILED.json`` into a job's run dir when its task function raised."""
 
     def on_job_end(self, config, job_return, **kwargs: Any) -> None:
-
         try:
             out_dir = Path(str(job_return.hydra_cfg.hydra.runtime.output_dir))
         except Exception:  # no hydra config: nothing sensible to write
@@ -86,7 +85,6 @@ class JobStatusCallback(_HydraCallback):
 
 
 def _multirun(job_return) -> bool:
-
     try:
         return job_return.hydra_cfg.hydra.mode == RunMode.MULTIRUN
     except Exception:
@@ -116,7 +114,6 @@ def find_jobs(sweep_dir: Path) -> list[Path]:
 
 
 def _read_overrides(job: Path) -> dict[str, str]:
-
     overrides: dict[str, str] = {}
     for item in OmegaConf.to_container(OmegaConf.load(job / ".hydra" / "overrides.yaml")) or []:
         key, sep, value = str(item).partition("=")
@@ -221,7 +218,6 @@ def to_markdown(rows: list[dict], title: str = "") -> str:
 
 
 def write_summary(sweep_dir: str | Path, out_prefix: str | Path | None = None) -> tuple[Path, Path, list[dict]]:
-
     sweep_dir = Path(sweep_dir)
     if not sweep_dir.is_dir():
         raise FileNotFoundError(f"dir: {sweep_dir} is not a directory")

@@ -95,7 +95,6 @@ def find_runs(root: Path) -> list[Path]:
 
 # -- 2. evaluation ------------------------------------------------------------------------------
 def scene_file(cfg: dict, run_cfg, out: Path) -> Path:
-
     if cfg["scenes"]:
         return Path(cfg["scenes"]).expanduser().resolve()
     path = out / "scenes.json"
@@ -126,7 +125,6 @@ def eval_config(run_cfg, eval_backend: str, randomization: str):
 def evaluate_cell(
     run_dir: Path, run_cfg, eval_backend: str, randomization: str, scenes: Path, cell_dir: Path, cfg: dict
 ) -> dict:
-
     summary_path = cell_dir / "summary.json"
     if summary_path.is_file():
         return json.loads(summary_path.read_text())
@@ -151,7 +149,6 @@ def _fmt(v) -> str:
 
 
 def write_csv(path: Path, rows: list[dict]) -> None:
-
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=list(COLUMNS), extrasaction="ignore")
     writer.writeheader()
@@ -253,7 +250,6 @@ def plot_heatmap(
 
 
 def write_outputs(out: Path, rows: list[dict], train: list[str], evals: list[str], randomizations: list[str]) -> str:
-
     write_csv(out / "matrix.csv", rows)
     table = markdown(rows, train, evals, randomizations)
     atomic_write_text(out / "matrix.md", table + "\n")
@@ -285,7 +281,6 @@ def write_outputs(out: Path, rows: list[dict], train: list[str], evals: list[str
 
 # -- driver -------------------------------------------------------------------------------------
 def transfer_matrix(cfg: dict, train_overrides: list[str]) -> list[dict]:
-
     out = Path(cfg["out"] or time.strftime("outputs/transfer_matrix/%Y-%m-%d/%H-%M-%S")).expanduser().resolve()
     out.mkdir(parents=True, exist_ok=True)
     if cfg["runs"]:

@@ -21,7 +21,6 @@ USAGE = (
 
 
 def main(argv: list[str] | None = None) -> None:
-
     args = parse_kv_args(
         sys.argv[1:] if argv is None else argv,
         {

@@ -287,7 +287,6 @@ class Pymunk2DBackend(Backend):
 
     # -- rendering ------------------------------------------------------------------------
     def render(self, overlay: RenderOverlay | None = None) -> np.ndarray:
-
         return draw_scene(self.scene, self.history, self.nav_history, self.robot, overlay)
 
     def close(self) -> None:
