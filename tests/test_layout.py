@@ -182,3 +182,19 @@ def test_only_the_allowed_modules_live_at_the_package_root():
         [(m, f"{m} (move it into its domain package or add it to ROOT_MODULES with a reason)") for m in extra],
         "modules at the package root outside the allow-list",
     )
+
+
+#: Console scripts whose ``main`` stays beside the code it runs (Hydra apps of the rl package).
+SCRIPTS_OUTSIDE_TOOLS = {"footsim-train", "footsim-eval"}
+
+
+def test_every_command_line_lives_in_footsim_tools():
+    tomllib = pytest.importorskip("tomllib", reason="tomllib is in the standard library from Python 3.11")
+    scripts = tomllib.loads((PACKAGE.parent / "pyproject.toml").read_text())["project"]["scripts"]
+    for name, target in scripts.items():
+        module, _, function = target.partition(":")
+        assert module in MODULES, f"{name}: {module} is not a footsim module"
+        tree = ast.parse(MODULES[module].read_text())
+        assert function in {n.name for n in tree.body if isinstance(n, ast.FunctionDef)}, f"{name}: no {target}"
+        if name not in SCRIPTS_OUTSIDE_TOOLS:
+            assert module.startswith("footsim.tools."), f"{name} -> {target}: command lines live in footsim.tools"
