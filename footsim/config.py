@@ -179,7 +179,7 @@ def build_walk(walk_cfg: Mapping):
 
 
 def build_robot(robot_cfg: Mapping | str):
-    from footsim.robots.spec import get_robot, robot_from_config
+    from footsim.robots.registry import get_robot, robot_from_config
 
     return get_robot(robot_cfg) if isinstance(robot_cfg, str) else robot_from_config(dict(robot_cfg))
 

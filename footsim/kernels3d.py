@@ -19,17 +19,17 @@ import math
 
 import numpy as np
 
-from footsim.kernels2d import _compiled
+from footsim.compiled import compiled
 
 
-@_compiled
+@compiled
 def _clamped_asin(s):
     """asin of ``s`` clamped into [-1, 1] (rounding can push a rotation entry past 1); a NaN
     passes through."""
     return math.asin(-1.0 if s < -1.0 else 1.0 if s > 1.0 else s)
 
 
-@_compiled
+@compiled
 def _fused_roll_pitch(quat):
     """Fused (roll, pitch) of the unit quaternion ``quat`` (w, x, y, z): the rotation matrix's
     R[2,1] = 2 (yz + wx) and −R[2,0] = 2 (wy − xz), clamped as ``quat_fused_roll_pitch`` clamps
@@ -39,14 +39,14 @@ def _fused_roll_pitch(quat):
     return _clamped_asin(s_roll), _clamped_asin(s_pitch)
 
 
-@_compiled
+@compiled
 def _corrected(target, roll_gain, pitch_gain, roll_error, pitch_error):
     """One joint's target plus the stabilizer's correction, in ``TrunkStabilizer.correct``'s
     order of operations (every compiled control path uses it, so they stay bit-identical)."""
     return target + (roll_gain * roll_error + pitch_gain * pitch_error)
 
 
-@_compiled
+@compiled
 def control_tick(targets, trunk, quat, gains, feed_forward, ctrl, leg_ids, k):
     """Write control tick ``k``'s leg commands into ``ctrl``.
 
@@ -74,7 +74,7 @@ def control_tick(targets, trunk, quat, gains, feed_forward, ctrl, leg_ids, k):
             ctrl[leg_ids[j]] = t
 
 
-@_compiled
+@compiled
 def stabilized_targets(targets, trunk, gains, k, roll, pitch):
     """Tick ``k``'s joint targets corrected for the measured fused ``roll`` and ``pitch``, as a new
     array: ``TrunkStabilizer.correct(targets[k], (roll, pitch), trunk[k, 3], trunk[k, 4])`` in one
@@ -87,7 +87,7 @@ def stabilized_targets(targets, trunk, gains, k, roll, pitch):
     return out
 
 
-@_compiled
+@compiled
 def all_finite(a):
     """``np.isfinite(a).all()`` without numpy's per-call overhead (~4 µs on a small array)."""
     for v in a.flat:
@@ -96,7 +96,7 @@ def all_finite(a):
     return True
 
 
-@_compiled
+@compiled
 def quick_status(root_q, qpos, qvel, warnings, warning_ids, out_of_bounds, tilt):
     """The driver's periodic check when all is well, in one call: True, with the base's fused
     (roll, pitch) written into ``tilt``, when no fatal warning is set, the state is finite, the
@@ -127,7 +127,7 @@ def quick_status(root_q, qpos, qvel, warnings, warning_ids, out_of_bounds, tilt)
     return True
 
 
-@_compiled
+@compiled
 def _times_transpose(row, m):
     """The 3-vector ``row`` times ``m``ᵀ (3×3), as three floats."""
     return (
@@ -137,7 +137,7 @@ def _times_transpose(row, m):
     )
 
 
-@_compiled
+@compiled
 def bullet_base_ok(position, quat, linear, angular, com_pos, com_rot, out_of_bounds, max_speed, tilt):
     """PyBullet's periodic check while all is well (``PybulletSim.status_ok``), in one call on the
     tuples Bullet returns for the base: its inertial frame's ``position`` and ``quat`` (x, y, z, w),
@@ -197,14 +197,14 @@ def bullet_control_state(targets, trunk, gains, com_rows):
     return state
 
 
-@_compiled
+@compiled
 def _joint_command(state, k, j, roll_error, pitch_error):
     """Joint ``j``'s corrected target at tick ``k`` (``state``: :func:`bullet_control_state`)."""
     n = state.shape[0] - 4
     return _corrected(state[k, j], state[n, j], state[n + 1, j], roll_error, pitch_error)
 
 
-@_compiled
+@compiled
 def bullet_control_tick(state, k, quat):
     """PyBullet's stabilized control tick (``PybulletSim.stabilized_ticks``) in one compiled
     call: tick ``k``'s 12 joint targets, corrected for the tilt of Bullet's base quaternion

@@ -8,7 +8,7 @@ r"""Tune the walk parameters of a 3D backend against the walk-check sequences (O
     python scripts/tune_walk.py backend=pybullet motor=servo walk=0 stabilizer=1 bench=1 iterations=10,20 \
         physics_hz=100,120 trials=200 out=/tmp/servo.db
 
-Objective (minimised), per sequence of ``footsim.walkcheck.standard_sequences()``: a fall or a
+Objective (minimised), per sequence of ``footsim.calibration.walkcheck.standard_sequences()``: a fall or a
 sim error costs ``2 + the share of double steps not executed``; otherwise the displacement
 error ratio against the 2D backend's displacement (the walk check's pass criterion is < 0.25).
 ``bench=1`` adds footsim-bench's walking pattern as a ninth sequence (a gait the benchmark cannot
@@ -30,7 +30,7 @@ import time
 import numpy as np
 
 from footsim import config as fconf
-from footsim.walkcheck import _error_ratio, make_backend, run_sequence, standard_sequences
+from footsim.calibration.walkcheck import error_ratio, make_backend, run_sequence, standard_sequences
 
 # Walk ranges around a hand-found working point (freq 1.0, trunk_pitch 0, trunk_x_offset -0.01,
 # trunk_swing 0.4): the Bit-Bots' full ranges (FACTS.md) mostly fall within a step on our model.
@@ -107,7 +107,7 @@ def evaluate(
             if result["fell"] or result["sim_error"]:
                 c = 2.0 + 1.0 - result["steps"] / len(seq.actions)
             else:
-                c = min(_error_ratio(result, commanded[seq.name], seq.measure), 2.0)
+                c = min(error_ratio(result, commanded[seq.name], seq.measure), 2.0)
             detail[seq.name] = round(c, 3)
             cost += c
     finally:
@@ -129,7 +129,7 @@ def main(argv: list[str]) -> None:
     sequences = standard_sequences()
     if "bench" in args:  # also footsim-bench's pattern (half-limit forward, gentle turns), 30 double steps
         from footsim.backends.bench3d import PATTERN
-        from footsim.walkcheck import Sequence
+        from footsim.calibration.walkcheck import Sequence
 
         sequences.append(Sequence("bench pattern", np.tile(PATTERN, (15, 1)), "translation"))
     pymunk = make_backend("pymunk")

@@ -4,7 +4,7 @@
     python scripts/tune_walk_pybullet.py eval trunk_pitch=0.1 backend.position_gain_scale=3
     python scripts/tune_walk_pybullet.py search trials=40 seed=0   # random search around the conf
 
-Runs the standard walk-check sequences (``footsim.walkcheck``) on PyBullet with overrides of
+Runs the standard walk-check sequences (``footsim.calibration.walkcheck``) on PyBullet with overrides of
 ``conf/walk/pybullet.yaml`` (``key=value``) and ``conf/backend/pybullet.yaml``
 (``backend.key=value``).  The search samples around the current values, scores each candidate
 (sequences passed, then the mean displacement error), stops a candidate at its first failure
@@ -20,7 +20,7 @@ import time
 import numpy as np
 
 from footsim import config as fconf
-from footsim.walkcheck import TOLERANCE, _error_ratio, run_sequence, standard_sequences
+from footsim.calibration.walkcheck import TOLERANCE, error_ratio, run_sequence, standard_sequences
 
 # Search ranges (FACTS: the ranges the Bit-Bots' Optuna study used, narrowed where our model needs).
 RANGES = {
@@ -64,7 +64,7 @@ def evaluate(walk_over: dict, backend_over: dict, sequences, commanded, stop_at_
     try:
         for seq in sequences:
             res = run_sequence(backend, seq)
-            ratio = _error_ratio(res, commanded[seq.name], seq.measure)
+            ratio = error_ratio(res, commanded[seq.name], seq.measure)
             ok = not res["fell"] and res["sim_error"] is None and ratio <= TOLERANCE
             passed += ok
             errors.append(min(ratio, 2.0) + (1.0 if res["fell"] else 0.0))

@@ -18,7 +18,7 @@ import sys
 import numpy as np
 import yaml
 
-import footsim.walkcheck as wc
+import footsim.calibration.walkcheck as wc
 from footsim import config as fconf
 
 
@@ -59,7 +59,7 @@ def main(argv: list[str]) -> None:
     try:
         for sequence in sequences:
             commanded, executed = wc.run_sequence(geometric, sequence), wc.run_sequence(backend, sequence)
-            error = wc._error_ratio(executed, commanded, sequence.measure)
+            error = wc.error_ratio(executed, commanded, sequence.measure)
             cells.append(f"{sequence.name}: {'F' if executed['fell'] else ''}{100 * error:.0f} %")
     finally:
         backend.close()

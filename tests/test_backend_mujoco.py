@@ -15,12 +15,12 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env  # n
 
 import footsim  # noqa: E402,F401  (registers the env)
 from footsim.backends.mujoco_backend import N_CYLINDERS, MujocoBackend  # noqa: E402
+from footsim.calibration.walkcheck import make_backend  # noqa: E402
 from footsim.env import FootstepEnv  # noqa: E402
 from footsim.geometry import Pose2D  # noqa: E402
 from footsim.scene import Obstacle, Scene  # noqa: E402
 from footsim.walk.footsteps import DoubleStep  # noqa: E402
 from footsim.walk.ik import LEG_JOINT_NAMES  # noqa: E402
-from footsim.walkcheck import make_backend  # noqa: E402
 
 EMPTY = Scene(goal=Pose2D(100.0, 0.0, 0.0))
 FORWARD = np.array([0.5, 0.0, 0.0, 0.5, 0.0, 0.0])

@@ -14,12 +14,12 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env  # n
 
 import footsim  # noqa: E402,F401  (registers the env)
 from footsim.backends.pybullet_backend import PybulletBackend, model_urdf  # noqa: E402
+from footsim.calibration.walkcheck import make_backend  # noqa: E402
 from footsim.env import FootstepEnv  # noqa: E402
 from footsim.geometry import Pose2D  # noqa: E402
 from footsim.scene import Obstacle, Scene  # noqa: E402
 from footsim.walk.footsteps import DoubleStep  # noqa: E402
 from footsim.walk.ik import LEG_JOINT_NAMES  # noqa: E402
-from footsim.walkcheck import make_backend  # noqa: E402
 
 EMPTY = Scene(goal=Pose2D(100.0, 0.0, 0.0))
 FORWARD = np.array([0.5, 0.0, 0.0, 0.5, 0.0, 0.0])
@@ -71,7 +71,7 @@ def test_max_turns_do_not_fall_and_turn_as_commanded(backend, direction):
     """Max turns fell on PyBullet until it got 60 solver iterations (conf/backend/pybullet.yaml):
     8 double steps of max turn must not fall and must turn within the walk check's 25 % of the
     planar footstep geometry's yaw (the 2D backend executing the same actions)."""
-    from footsim.walkcheck import Sequence, run_sequence
+    from footsim.calibration.walkcheck import Sequence, run_sequence
 
     turn = Sequence("turn", np.tile([0, 0, direction, 0, 0, direction], (8, 1)).astype(float), "yaw")
     planar = make_backend("pymunk")
@@ -372,7 +372,7 @@ def test_reset_stands_on_flat_soles_like_mujoco(backend):
         sole = np.asarray(state[4]) + rotation @ np.asarray(offset)
         assert abs(sole[2]) < 2e-3  # resting on the floor
         assert pybullet.getContactPoints(sim.robot_id, sim.floor_id, sim.link_index[foot], physicsClientId=sim.client)
-    mujoco_backend = pytest.importorskip("footsim.walkcheck").make_backend("mujoco")
+    mujoco_backend = pytest.importorskip("footsim.calibration.walkcheck").make_backend("mujoco")
     try:
         mujoco_backend.reset(EMPTY, np.random.default_rng(0))
         expected_pitch = mujoco_backend.sim.base_tilt()[1]

@@ -9,7 +9,7 @@ from footsim.walk.footsteps import DoubleStep
 
 def test_replay_covers_every_env_tick():
     pytest.importorskip("mujoco")
-    from footsim.walkcheck import make_backend
+    from footsim.calibration.walkcheck import make_backend
 
     repeats = 3
     out = bench_backend("mujoco", repeats=repeats)

@@ -5,9 +5,9 @@ import json
 import numpy as np
 import pytest
 
-from footsim import calibrate
-from footsim.calibrate import FEATURES, ExecutionModel
-from footsim.walkcheck import make_backend, run_sequence, standard_sequences
+from footsim.calibration import execution_model as calibrate
+from footsim.calibration.execution_model import FEATURES, ExecutionModel
+from footsim.calibration.walkcheck import make_backend, run_sequence, standard_sequences
 
 
 def _model(coef, intercept=(0, 0, 0), std=(0, 0, 0), fall=None, names=("dx", "dy", "dtheta")):

@@ -1,4 +1,5 @@
-"""The compiled 2D kernels (``footsim.kernels2d``) against the pure-Python code they replaced.
+"""The compiled 2D kernels (``footsim.tasks.rays``, ``footsim.backends.pymunk2d.collision``,
+``footsim.walk.kernels``) against the pure-Python code they replaced.
 
 The ``_reference_*`` functions below are that code, kept here as the reference implementation
 (``footsim/tasks/nav.py`` and ``footsim/backends/pymunk2d.py`` before numba).  The contract is
@@ -11,13 +12,12 @@ import math
 import numpy as np
 import pytest
 
-from footsim import kernels2d
-from footsim.backends.pymunk2d import Pymunk2DBackend, box_hits_circles
+from footsim.backends.pymunk2d import Pymunk2DBackend, box_hits_circles, collision
 from footsim.config import build_robot, build_walk, load_preset
 from footsim.env import FootstepEnv
 from footsim.geometry import Pose2D, mean_pose
 from footsim.scene import Obstacle, Scene, circle_array
-from footsim.tasks import nav
+from footsim.tasks import nav, rays
 from footsim.tasks.nav import NavTaskConfig
 from footsim.tasks.scenes import SceneSampler
 from footsim.walk.footsteps import DoubleStep, FeetState, Footstep, FootstepGeometry, Side, StepLimits
@@ -235,7 +235,7 @@ def _random_case(rng, i, n):
 @pytest.mark.parametrize("n_rays", [1, 3, 36, 37, 360])
 def test_ray_scan_matches_the_python_reference(n_rays):
     rng = np.random.default_rng(100 + n_rays)
-    directions = kernels2d.ray_directions(n_rays)
+    directions = rays.ray_directions(n_rays)
     out = np.empty(n_rays)
     counts = {"hit": 0, "inside": 0, "exact": 0}
     cases = 2000 if n_rays <= 37 else 400
@@ -243,7 +243,7 @@ def test_ray_scan_matches_the_python_reference(n_rays):
         pose, circles = _random_case(rng, i, n_rays)
         max_range = [5.0, 1.0, 0.3, 5.0][i % 4]
         expected = _reference_rays(pose, circles, n_rays, max_range)
-        kernels2d.scan_rays(*pose, circle_array(circles), directions, max_range, out)
+        rays.scan_rays(*pose, circle_array(circles), directions, max_range, out)
         np.testing.assert_allclose(out, expected, rtol=0, atol=ATOL, err_msg=f"{pose} {circles}")
         # the same rays hit (a hit is strictly closer than max_range)
         assert [v < max_range for v in out] == [v < max_range for v in expected], (pose, circles)
@@ -255,11 +255,11 @@ def test_ray_scan_matches_the_python_reference(n_rays):
 
 
 def test_ray_special_cases_and_wrapper():
-    directions = kernels2d.ray_directions(36)
+    directions = rays.ray_directions(36)
     out = np.empty(36)
-    kernels2d.scan_rays(0.0, 0.0, 0.3, circle_array([]), directions, 5.0, out)
+    rays.scan_rays(0.0, 0.0, 0.3, circle_array([]), directions, 5.0, out)
     assert np.all(out == 5.0)
-    kernels2d.scan_rays(0.0, 0.0, 0.3, circle_array([(0.1, 0.0, 0.1)]), directions, 5.0, out)
+    rays.scan_rays(0.0, 0.0, 0.3, circle_array([(0.1, 0.0, 0.1)]), directions, 5.0, out)
     assert np.all(out == 0.0)  # the origin on a circle's edge counts as inside
     pose = Pose2D(0.2, -0.1, 2.0)
     obstacles = (Obstacle(1.0, 0.5, 0.3), Obstacle(-1.0, -2.0, 0.2))
@@ -374,7 +374,7 @@ def test_box_kernel_matches_the_python_reference():
         circles = [(x + c * u - s * v, y + s * u + c * v, r)]
         circles += [tuple(rng.uniform(-1.5, 1.5, 2)) + (rng.uniform(0.02, 0.3),) for _ in range(i % 3)]
         expected = _reference_box_hits(x, y, theta, hl, hw, circles)
-        assert kernels2d.box_hits_circles(x, y, theta, hl, hw, circle_array(circles)) == expected
+        assert collision.box_hits_circles(x, y, theta, hl, hw, circle_array(circles)) == expected
         assert box_hits_circles(x, y, theta, hl, hw, circles) == expected
         hits += expected
     assert 1000 < hits < 4500  # both answers well represented
@@ -442,7 +442,7 @@ def test_placement_matches_the_python_reference(geometry):
         feet = geometry.initial_feet(start)
         assert geometry.execute(feet, double_step) == _reference_execute(geometry, feet, double_step)
         offset = Pose2D(*rng.normal(0, 0.01, 3))
-        shift = lambda pose: pose.compose(offset)  # noqa: E731  (a deterministic perturbation)
+        shift = lambda pose, offset=offset: pose.compose(offset)  # noqa: E731  (a deterministic perturbation)
         assert geometry.execute(feet, double_step, shift) == _reference_execute(geometry, feet, double_step, shift)
     assert interfered > 500
 

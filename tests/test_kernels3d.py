@@ -128,9 +128,9 @@ def test_control_tick_python_function_matches_the_compiled_one():
 
 
 def test_typed_entry_is_the_compiled_kernel_without_dispatch():
-    """``kernels2d.typed_entry``: the compiled code itself (not the dispatcher), returning what
+    """``footsim.compiled.typed_entry``: the compiled code itself (not the dispatcher), returning what
     the dispatcher returns; and the plain function where there is nothing compiled."""
-    from footsim.kernels2d import typed_entry
+    from footsim.compiled import typed_entry
     from footsim.kernels3d import bullet_control_state, bullet_control_tick
 
     rng = np.random.default_rng(2)
@@ -223,9 +223,9 @@ def test_quick_status_equals_the_full_check(name):
     pytest.importorskip("mujoco")
     if name == "dm_control":
         pytest.importorskip("dm_control")
+    from footsim.calibration.walkcheck import make_backend
     from footsim.geometry import Pose2D
     from footsim.scene import Scene
-    from footsim.walkcheck import make_backend
 
     backend = make_backend(name)
     try:

@@ -15,18 +15,9 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from footsim.robots.spec import (
-    Box,
-    Inertial,
-    Joint,
-    Link,
-    RobotSpec,
-    ServoParams,
-    get_robot,
-    robot_from_config,
-    sole_frame_name,
-    wolfgang,
-)
+from footsim.robots.registry import get_robot, robot_from_config
+from footsim.robots.spec import Box, Inertial, Joint, Link, RobotSpec, ServoParams, sole_frame_name
+from footsim.robots.wolfgang import wolfgang
 from footsim.walk.ik import LegGeometry
 
 mujoco = pytest.importorskip("mujoco")
@@ -498,7 +489,7 @@ def test_mujoco_and_pybullet_agree(spec, mj, bullet):
 
 
 def test_cli_writes_models(tmp_path, capsys):
-    from footsim.robots.cli import main
+    from footsim.tools.model import main
 
     out = tmp_path / "w.xml"
     assert main(["robot=wolfgang", "format=mjcf", f"out={out}"]) == 0
@@ -521,7 +512,7 @@ def test_cli_writes_models(tmp_path, capsys):
     ],
 )
 def test_cli_rejects_bad_arguments(argv, message, capsys):
-    from footsim.robots.cli import main
+    from footsim.tools.model import main
 
     assert main(argv) == 2
     assert message in capsys.readouterr().err

@@ -86,10 +86,10 @@ def test_step_result_reports_the_trunk_tilt():
     seen during it, from its own checks of the base (independent check: the sim's base pose)."""
     pytest.importorskip("mujoco")
     from footsim.backends.physics3d import fused_roll_pitch
+    from footsim.calibration.walkcheck import make_backend
     from footsim.geometry import Pose2D
     from footsim.scene import Scene
     from footsim.walk.footsteps import DoubleStep
-    from footsim.walkcheck import make_backend
 
     backend = make_backend("mujoco")
     try:

@@ -11,8 +11,9 @@ from pathlib import Path
 import pytest
 from hydra import compose, initialize_config_dir
 
-from footsim import sweeps
 from footsim.config import conf_dir
+from footsim.rl import sweeps
+from footsim.tools import sweep_summary
 
 TINY = [
     "train.total_timesteps=256",
@@ -121,7 +122,7 @@ def test_summary_table_of_a_synthetic_sweep(tmp_path, capsys):
     _fake_job(tmp_path, "4", ["seed=4", "+experiment=thesis_2d"], model=False)
     out = tmp_path / "report" / "table"
     (tmp_path / "report").mkdir()
-    assert sweeps.main([f"dir={tmp_path}", f"out={out}"]) == 0
+    assert sweep_summary.main([f"dir={tmp_path}", f"out={out}"]) == 0
     rows = list(csv.DictReader(open(f"{out}.csv")))
     assert [r["job"] for r in rows] == ["2", "3", "4", "10"]  # numeric job order
     assert [r["status"] for r in rows] == ["ok", "failed", "no_eval", "ok"]
@@ -145,12 +146,12 @@ def test_summary_table_of_a_synthetic_sweep(tmp_path, capsys):
     ],
 )
 def test_summary_cli_rejects_bad_arguments(argv, message, capsys):
-    assert sweeps.main(argv) == 2
+    assert sweep_summary.main(argv) == 2
     assert message in capsys.readouterr().err
 
 
 def test_summary_of_a_dir_without_jobs(tmp_path, capsys):
-    assert sweeps.main([f"dir={tmp_path}"]) == 2
+    assert sweep_summary.main([f"dir={tmp_path}"]) == 2
     assert "no Hydra jobs" in capsys.readouterr().err
 
 

@@ -7,6 +7,7 @@ import pytest
 pytest.importorskip("mujoco")
 
 from footsim.rl import transfer_matrix  # noqa: E402
+from footsim.tools import transfer_matrix as transfer_matrix_tool  # noqa: E402
 
 TINY = [
     "train.total_timesteps=64",
@@ -29,7 +30,7 @@ def _rows(path):
 @pytest.mark.slow
 def test_transfer_matrix_trains_evaluates_and_reuses_runs(tmp_path):
     out = tmp_path / "matrix"
-    transfer_matrix.main([f"out={out}", "backends=pymunk,mujoco", "n_scenes=2", *TINY])
+    transfer_matrix_tool.main([f"out={out}", "backends=pymunk,mujoco", "n_scenes=2", *TINY])
     rows = _rows(out / "matrix.csv")
     assert {(r["train_backend"], r["eval_backend"]) for r in rows} == {
         ("pymunk", "pymunk"),
@@ -46,7 +47,7 @@ def test_transfer_matrix_trains_evaluates_and_reuses_runs(tmp_path):
 
     # reuse the trained runs: no training, the same scene file, both randomization presets, one eval backend
     again = tmp_path / "again"
-    transfer_matrix.main(
+    transfer_matrix_tool.main(
         [
             f"out={again}",
             f"runs={out / 'train'}",
@@ -71,7 +72,7 @@ def test_transfer_matrix_trains_evaluates_and_reuses_runs(tmp_path):
 
 
 def test_arguments(tmp_path):
-    cfg, overrides = transfer_matrix.parse_args(
+    cfg, overrides = transfer_matrix_tool.parse_args(
         ["backends=[pymunk,pybullet]", "randomization=none,default", "n_scenes=7", "seed=3", "train.total_timesteps=10"]
     )
     assert overrides == ["seed=3", "train.total_timesteps=10"]  # seed is footsim-train's
@@ -81,8 +82,8 @@ def test_arguments(tmp_path):
     assert "-m" in cmd and "+launcher=local" in cmd and "backend=pymunk,pybullet" in cmd
     assert "eval.after_train=false" in cmd and cmd[-1] == "hydra.sweep.dir=/x"
     with pytest.raises(SystemExit, match="runs= reuses"):
-        transfer_matrix.parse_args(["runs=/tmp", "train.total_timesteps=5"])
+        transfer_matrix_tool.parse_args(["runs=/tmp", "train.total_timesteps=5"])
     with pytest.raises(SystemExit, match="no trained run"):
         transfer_matrix.transfer_matrix(
-            {**transfer_matrix.parse_args([])[0], "runs": str(tmp_path), "out": str(tmp_path / "o")}, []
+            {**transfer_matrix_tool.parse_args([])[0], "runs": str(tmp_path), "out": str(tmp_path / "o")}, []
         )

@@ -21,9 +21,10 @@ from footsim.walk.ik import leg_fk, rpy_from_rotation
 
 LIMITS = StepLimits(0.156, 0.103, 0.764)
 LEG = LegGeometry()
+PARAMS = WalkParams()
 
 
-def make_engine(params: WalkParams = WalkParams(), control_dt: float = 1 / 500, **kwargs) -> QuinticWalk:
+def make_engine(params: WalkParams = PARAMS, control_dt: float = 1 / 500, **kwargs) -> QuinticWalk:
     geometry = FootstepGeometry(LIMITS, foot_distance=params.foot_distance)
     return QuinticWalk(params, geometry, LEG, control_dt, **kwargs)
 
@@ -374,7 +375,7 @@ def test_reset_places_the_feet_around_a_pose():
 
 
 def test_walkplot_cli_writes_a_png(tmp_path):
-    from footsim.walk.plot import main
+    from footsim.tools.walkplot import main
 
     out = tmp_path / "walk.png"
     main([f"out={out}", "steps=0.05,0,0.2,0.05,0.03,0.2", "n=1", "stop=false"])

@@ -45,7 +45,7 @@ def test_walktune_composes_the_backends_walk_and_the_hpo_presets():
 
 @needs_pybullet
 def test_walktune_returns_a_finite_objective_on_pybullet(tmp_path):
-    from footsim.walktune import WEIGHTS, run
+    from footsim.calibration.walktune import WEIGHTS, run
 
     cfg = _compose("backend=pybullet", *TINY)
     result = run(cfg, tmp_path)
@@ -68,7 +68,7 @@ def test_walktune_returns_a_finite_objective_on_pybullet(tmp_path):
 
 
 def test_walktune_rejects_the_2d_backend():
-    from footsim.walktune import run
+    from footsim.calibration.walktune import run
 
     with pytest.raises(ValueError, match="needs a 3D backend"):
         run(_compose("backend=pymunk"))
@@ -80,7 +80,7 @@ def test_walktune_rejects_the_2d_backend():
 def test_two_trial_walk_sweep_completes(tmp_path):
     import optuna
 
-    from footsim.walktune import enqueue_walk
+    from footsim.calibration.walktune import enqueue_walk
 
     sweep = tmp_path / "hpo"
     storage = f"sqlite:///{sweep / 'optuna.db'}"

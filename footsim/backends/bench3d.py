@@ -48,7 +48,7 @@ def bench_backend(name: str, repeats: int = 100, seed: int = 0) -> dict:
     by building and running it),
     plus ``fell`` (whether the pattern made it fall — the figures are then not comparable).
     """
-    from footsim.walkcheck import make_backend
+    from footsim.calibration.walkcheck import make_backend
 
     if repeats < 1:
         raise ValueError(f"repeats must be >= 1, got {repeats!r}")

@@ -60,7 +60,7 @@ from scipy.spatial.transform import Rotation
 
 from footsim.backends.base import RenderOverlay
 from footsim.backends.physics3d import Physics3DBackend, PhysicsSim, levelling_rotation
-from footsim.kernels2d import typed_entry
+from footsim.compiled import typed_entry
 from footsim.kernels3d import bullet_base_ok, bullet_control_state, bullet_control_tick
 from footsim.robots.spec import RobotSpec
 from footsim.robots.urdf import build_urdf

@@ -19,6 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import ndimage
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import dijkstra
 
 from footsim.scene import Obstacle
 
@@ -312,8 +314,6 @@ def distance_to_goal_map(costmap: Costmap, goal_xy: tuple[float, float]) -> np.n
 
     The goal cell (or, when it is blocked, its nearest free cell) is the source.
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import dijkstra
 
     nx, ny = costmap.shape
     free = ~costmap.blocked

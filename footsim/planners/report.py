@@ -22,8 +22,18 @@ from pathlib import Path
 from typing import Any, cast
 
 import numpy as np
+from omegaconf import OmegaConf
 
-from footsim.rl.evaluate import format_table
+from footsim.config import conf_dir
+from footsim.env import FootstepEnv
+from footsim.geometry import Pose2D
+from footsim.planners import make_controller
+from footsim.rl.common import LoadedPolicy
+from footsim.rl.evaluate import PolicyController, format_table
+from footsim.robots.registry import get_robot
+from footsim.tasks.scenes import load_scenes
+from footsim.utils import parse_kv_args
+from footsim.walk.footsteps import Side
 
 SETS = ("free", "obstacles")
 NOISES = ("none", "localization")
@@ -111,8 +121,6 @@ def plot_comparisons(root: Path, data: dict) -> list[Path]:
 
 def run_paths(scene, controllers: dict, backend: str = "pymunk", noise: str = "none", seed: int = 0) -> dict:
     """Run each controller on one scene; returns {name: (outcome, footsteps [(side, pose)], nav poses)}."""
-    from footsim.env import FootstepEnv
-    from footsim.geometry import Pose2D
 
     out = {}
     for name, make in controllers.items():
@@ -140,8 +148,6 @@ def plot_paths(path: Path, scene, runs: dict, robot) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.patches import Circle, Polygon
-
-    from footsim.walk.footsteps import Side
 
     fig, axes = plt.subplots(1, len(runs), figsize=(5 * len(runs), 5), squeeze=False)
     hl, hw = 0.5 * robot.foot_length, 0.5 * robot.foot_width
@@ -180,25 +186,17 @@ def plot_paths(path: Path, scene, runs: dict, robot) -> None:
 def example_paths(
     root: Path, scenes_file: Path, backend: str = "pymunk", count: int = 4, policy_run: str | None = None
 ) -> list[Path]:
-    from footsim.planners import make_controller
-    from footsim.tasks.scenes import load_scenes
-
     scenes = load_scenes(scenes_file)
     controllers: dict[str, Callable[..., Any]] = {
         name: (lambda env, n=name: make_controller(env, _conf(n))) for name in ("velocity", "footstep")
     }
     if policy_run:
-        from footsim.rl.common import LoadedPolicy
-        from footsim.rl.evaluate import PolicyController
-
         controllers = {"policy": lambda env: PolicyController(LoadedPolicy(Path(policy_run))), **controllers}
     written = []
     robot = None
     for k, scene in enumerate(scenes[:count]):
         runs = run_paths(scene, controllers, backend)
         if robot is None:
-            from footsim.robots.spec import get_robot
-
             robot = get_robot("wolfgang")
         path = root / f"paths_{k}.png"
         plot_paths(path, scene, runs, robot)
@@ -208,17 +206,12 @@ def example_paths(
 
 def _conf(name: str) -> dict:
     """A controller's preset from conf/controller/<name>.yaml."""
-    from omegaconf import OmegaConf
-
-    from footsim.config import conf_dir
 
     preset = OmegaConf.to_container(OmegaConf.load(conf_dir() / "controller" / f"{name}.yaml"), resolve=True)
     return cast(dict, preset)  # the preset file is a mapping
 
 
 def main(argv: list[str] | None = None) -> None:
-    from footsim.utils import parse_kv_args
-
     argv = sys.argv[1:] if argv is None else argv
     if not argv:
         raise SystemExit("usage: python -m footsim.planners.report OUT [backend=pymunk] [paths=4] [policy_run=RUN]")

@@ -22,6 +22,7 @@ import numpy as np
 from footsim.geometry import Pose2D, wrap_angle
 from footsim.planners.grid import Costmap, densify, plan_path
 from footsim.scene import Scene
+from footsim.walk.engine import QuinticWalk
 from footsim.walk.footsteps import FootstepGeometry, StepLimits
 
 
@@ -132,8 +133,6 @@ class VelocityController:
     kind = "velocity"
 
     def __init__(self, limits: StepLimits, walk, geometry: FootstepGeometry, params: VelocityParams = VelocityParams()):
-        from footsim.walk.engine import QuinticWalk
-
         self.params = params
         self.limits = limits
         self.engine = QuinticWalk(walk, geometry)  # only its velocity-order rule is used

@@ -14,9 +14,11 @@ global-path hint (53 → 55).
 
 from __future__ import annotations
 
+import pickle
 from pathlib import Path
 
 from footsim.rl.common import MODEL_FILE, VECNORM_FILE, load_run_config
+from footsim.tasks.nav import observation_layout
 
 
 def init_from_run(model, parent_dir: str | Path, task=None) -> dict:
@@ -26,7 +28,6 @@ def init_from_run(model, parent_dir: str | Path, task=None) -> dict:
     parent's observation blocks are a prefix of this run's (e.g. an obstacle run seeding one with
     the path hint); without it only a 17-D obstacle-free parent can seed a larger observation.
     """
-    import pickle
 
     from stable_baselines3 import PPO
 
@@ -103,7 +104,6 @@ OBS_WITHOUT_RAYS = 17
 
 def _layout(task) -> tuple[tuple[str, int], ...] | None:
     """Observation blocks of a task config mapping (a run's ``task``); None if unknown."""
-    from footsim.tasks.nav import observation_layout
 
     if task is None or task.get("obstacles") is None:
         return None

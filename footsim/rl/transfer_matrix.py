@@ -1,4 +1,4 @@
-"""Cross-backend transfer matrix: ``footsim-transfer-matrix [backends=a,b] [runs=DIR] [key=value ...]``.
+"""Cross-backend transfer matrix (``footsim-transfer-matrix``, :mod:`footsim.tools.transfer_matrix`).
 
 1. Trains one policy per backend with a Hydra multirun of ``footsim-train``
    (``footsim-train -m backend=a,b <train overrides> hydra.sweep.dir=OUT/train``), or reuses the
@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 import math
 import subprocess
 import sys
@@ -26,14 +27,15 @@ import time
 from pathlib import Path
 from typing import Any, cast
 
+import numpy as np
 from omegaconf import OmegaConf
 
-USAGE = (
-    "usage: footsim-transfer-matrix [backends=pymunk,mujoco] [eval_backends=...] [runs=MULTIRUN_DIR] [out=DIR] "
-    "[scenes=FILE | n_scenes=N scenes_seed=S] [randomization=none,default] [launcher=local] "
-    "[footsim-train overrides ...]"
-)
-LIST_KEYS = ("backends", "eval_backends", "randomization")
+from footsim import config as fconf
+from footsim.rl.common import CONFIG_FILE, MODEL_FILE, load_run_config
+from footsim.rl.evaluate import evaluate_run
+from footsim.tasks.scenes import sample_scenes, save_scenes
+from footsim.utils import atomic_save, atomic_write_text
+
 METRICS = (
     "episodes",
     "success",
@@ -47,46 +49,6 @@ METRICS = (
     "success_steps_std",
 )
 COLUMNS = ("train_backend", "eval_backend", "randomization", *METRICS, "run", "eval_dir")
-
-
-def _defaults():
-    from footsim.config import conf_dir
-
-    return OmegaConf.load(conf_dir() / "transfer_matrix.yaml")
-
-
-def parse_args(argv: list[str]) -> tuple[dict, list[str]]:
-    """This command's options (conf/transfer_matrix.yaml + overrides) and the footsim-train overrides."""
-    cfg = cast("dict[str, Any]", OmegaConf.to_container(_defaults()))  # the YAML file is a mapping of str keys
-    train_overrides = []
-    for arg in argv:
-        if arg in ("-h", "--help"):
-            raise SystemExit(USAGE)
-        if "=" not in arg:
-            raise SystemExit(f"footsim-transfer-matrix: expected key=value, got {arg!r}\n{USAGE}")
-        key, value = arg.split("=", 1)
-        if key not in cfg:
-            train_overrides.append(arg)
-            continue
-        if key in LIST_KEYS:
-            items = [v.strip() for v in value.strip("[]").split(",") if v.strip()]
-            cfg[key] = items or None
-        else:
-            parsed = OmegaConf.from_dotlist([f"v={value}"]).v  # YAML typing: ints, bools, null
-            cfg[key] = parsed
-    if not cfg["backends"] and not cfg["runs"]:
-        raise SystemExit("footsim-transfer-matrix: backends= is empty")
-    if not cfg["randomization"]:
-        cfg["randomization"] = ["none"]
-    from footsim.backends.base import require_known_backends
-
-    require_known_backends((cfg["backends"] or []) + (cfg["eval_backends"] or []), "footsim-transfer-matrix")
-    if cfg["runs"] and train_overrides:
-        raise SystemExit(
-            f"footsim-transfer-matrix: runs= reuses trained policies; unknown keys {train_overrides} "
-            f"(own keys: {sorted(cfg)})"
-        )
-    return cfg, train_overrides
 
 
 # -- 1. training --------------------------------------------------------------------------------
@@ -117,7 +79,6 @@ def train_policies(
 
 def find_runs(root: Path) -> list[Path]:
     """Run directories (config.yaml + model.zip) below ``root`` (or ``root`` itself), in job order."""
-    from footsim.rl.common import CONFIG_FILE, MODEL_FILE
 
     root = Path(root)
     found = {
@@ -135,9 +96,6 @@ def find_runs(root: Path) -> list[Path]:
 
 # -- 2. evaluation ------------------------------------------------------------------------------
 def scene_file(cfg: dict, run_cfg, out: Path) -> Path:
-    from footsim import config as fconf
-    from footsim.tasks.scenes import sample_scenes, save_scenes
-
     if cfg["scenes"]:
         return Path(cfg["scenes"]).expanduser().resolve()
     path = out / "scenes.json"
@@ -155,7 +113,6 @@ def scene_file(cfg: dict, run_cfg, out: Path) -> Path:
 def eval_config(run_cfg, eval_backend: str, randomization: str):
     """The run's config moved to ``eval_backend`` (with that backend's walk unless it is the
     training backend) under the ``randomization`` preset — as ``footsim-eval backend=B randomization=R``."""
-    from footsim import config as fconf
 
     cfg = OmegaConf.create(OmegaConf.to_container(run_cfg, resolve=True))
     OmegaConf.set_struct(cfg, False)
@@ -169,10 +126,6 @@ def eval_config(run_cfg, eval_backend: str, randomization: str):
 def evaluate_cell(
     run_dir: Path, run_cfg, eval_backend: str, randomization: str, scenes: Path, cell_dir: Path, cfg: dict
 ) -> dict:
-    import json
-
-    from footsim.rl.evaluate import evaluate_run
-
     summary_path = cell_dir / "summary.json"
     if summary_path.is_file():
         return json.loads(summary_path.read_text())
@@ -197,8 +150,6 @@ def _fmt(v) -> str:
 
 
 def write_csv(path: Path, rows: list[dict]) -> None:
-    from footsim.utils import atomic_write_text
-
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=list(COLUMNS), extrasaction="ignore")
     writer.writeheader()
@@ -209,7 +160,6 @@ def write_csv(path: Path, rows: list[dict]) -> None:
 
 def aggregate(rows: list[dict], metric: str, randomization: str, train: list[str], evals: list[str]):
     """Matrix [train backend, eval backend] of ``metric``, mean over runs (NaN where none)."""
-    import numpy as np
 
     m = np.full((len(train), len(evals)), np.nan)
     for i, tb in enumerate(train):
@@ -267,9 +217,6 @@ def plot_heatmap(
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    import numpy as np
-
-    from footsim.utils import atomic_save
 
     n = len(randomizations)
     fig, axes = plt.subplots(
@@ -304,8 +251,6 @@ def plot_heatmap(
 
 
 def write_outputs(out: Path, rows: list[dict], train: list[str], evals: list[str], randomizations: list[str]) -> str:
-    from footsim.utils import atomic_write_text
-
     write_csv(out / "matrix.csv", rows)
     table = markdown(rows, train, evals, randomizations)
     atomic_write_text(out / "matrix.md", table + "\n")
@@ -337,8 +282,6 @@ def write_outputs(out: Path, rows: list[dict], train: list[str], evals: list[str
 
 # -- driver -------------------------------------------------------------------------------------
 def transfer_matrix(cfg: dict, train_overrides: list[str]) -> list[dict]:
-    from footsim.rl.common import load_run_config
-
     out = Path(cfg["out"] or time.strftime("outputs/transfer_matrix/%Y-%m-%d/%H-%M-%S")).expanduser().resolve()
     out.mkdir(parents=True, exist_ok=True)
     if cfg["runs"]:
@@ -388,8 +331,3 @@ def transfer_matrix(cfg: dict, train_overrides: list[str]) -> list[dict]:
     print(table)
     print(f"transfer matrix in {out} (matrix.csv, matrix.md, heatmap_success.png, heatmap_success_time.png)")
     return rows
-
-
-def main(argv: list[str] | None = None) -> None:
-    cfg, overrides = parse_args(sys.argv[1:] if argv is None else argv)
-    transfer_matrix(cfg, overrides)

@@ -12,9 +12,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from footsim import kernels2d
 from footsim.geometry import Pose2D, wrap_angle
 from footsim.scene import Obstacle, Scene, circle_array
+from footsim.tasks import rays
 
 WEIGHTS_NO_OBSTACLES = {"distance": 0.3, "angle": 0.3, "orientation": 0.2, "obstacle": 0.0, "continuity": 0.2}
 WEIGHTS_OBSTACLES = {"distance": 0.25, "angle": 0.25, "orientation": 0.15, "obstacle": 0.2, "continuity": 0.15}
@@ -135,13 +135,13 @@ def _ray_directions(n_rays: int) -> np.ndarray:
     """cos and sin of the ray headings ``k·2π/n`` in the robot frame, ``(2, n)`` (cached per n)."""
     base = _RAY_DIRECTIONS.get(n_rays)
     if base is None:
-        base = _RAY_DIRECTIONS[n_rays] = kernels2d.ray_directions(n_rays)
+        base = _RAY_DIRECTIONS[n_rays] = rays.ray_directions(n_rays)
     return base
 
 
 def scene_arrays(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
     """``scene.circles`` (obstacles and ball) and ``scene.obstacle_circles`` (no ball) as float64
-    ``(n, 3)`` arrays for the compiled kernels (:mod:`footsim.kernels2d`).
+    ``(n, 3)`` arrays for the compiled kernels (:mod:`footsim.tasks.rays`).
 
     Views of the scene's cached :attr:`Scene.circle_array`; the env takes them once per episode
     and passes them to :func:`observation` and :func:`reward_terms`.
@@ -154,11 +154,11 @@ def ray_distances(pose: Pose2D, obstacles: tuple[Obstacle, ...], n_rays: int, ma
     """Distance along each of ``n_rays`` evenly spaced rays from ``pose`` to the first circle hit.
 
     Ray k points at heading ``pose.theta + k·2π/n``; misses report ``max_range``; an origin inside
-    a circle reports 0.  (Compiled: :func:`footsim.kernels2d.scan_rays`.)
+    a circle reports 0.  (Compiled: :func:`footsim.tasks.rays.scan_rays`.)
     """
     out = np.empty(int(n_rays))
     circles = circle_array([(o.x, o.y, o.r) for o in obstacles])
-    kernels2d.scan_rays(
+    rays.scan_rays(
         float(pose[0]), float(pose[1]), float(pose[2]), circles, _ray_directions(int(n_rays)), float(max_range), out
     )
     return out
@@ -176,7 +176,7 @@ def _nearest_circle_distance(
     :func:`footsim.circle_array`); inf without circles.  The kernel picks the circle,
     ``math.hypot`` gives the distance (the C library's ``hypot`` can differ in the last bit)."""
     px, py = pose[0], pose[1]
-    k = kernels2d.nearest_circle(px, py, circle_array(circles) if array is None else array)
+    k = rays.nearest_circle(px, py, circle_array(circles) if array is None else array)
     if k < 0:
         return math.inf
     ox, oy, r = circles[k]
@@ -288,14 +288,14 @@ def observation(
         options += [hint[0], hint[1]]
     if not config.obstacles:
         return np.array([*head, *a1, *a2, *options], dtype=np.float32)
-    # The ray block goes between the actions and the options: one compiled call (footsim.kernels2d)
+    # The ray block goes between the actions and the options: one compiled call (footsim.tasks.rays)
     # writes it into the observation.
     directions = config.ray_directions
     n = directions.shape[1]
     obs = np.empty(17 + n + len(options), dtype=np.float32)
     _pack_floats(obs, 0, *head, *a1, *a2)  # = obs[:17] = values (the same float32 rounding), a third of the cost
     circles = (arrays if arrays is not None else scene_arrays(scene))[0]
-    kernels2d.ray_observation(
+    rays.ray_observation(
         believed[0],
         believed[1],
         believed[2],

@@ -15,7 +15,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -23,7 +22,7 @@ import numpy as np
 
 from footsim.geometry import Pose2D, wrap_angle
 from footsim.scene import Obstacle, Scene
-from footsim.utils import atomic_write_text, parse_kv_args
+from footsim.utils import atomic_write_text
 
 
 @dataclass(frozen=True)
@@ -131,26 +130,3 @@ def load_scenes(path: str | os.PathLike) -> list[Scene]:
     if not data["scenes"]:
         raise ValueError(f"scene file {path} holds no scenes")
     return [Scene.from_dict(s, i) for i, s in enumerate(data["scenes"])]
-
-
-def main(argv: list[str] | None = None) -> None:
-    """``footsim-scenes out=FILE n=500 seed=S obstacles=true|false``."""
-    args = parse_kv_args(
-        sys.argv[1:] if argv is None else argv,
-        {"out": None, "n": "500", "seed": "0", "obstacles": "false"},
-        "footsim-scenes",
-    )
-    if not args["out"]:
-        raise SystemExit("footsim-scenes: out=FILE is required")
-    try:
-        n, seed = int(args["n"]), int(args["seed"])
-    except ValueError:
-        raise SystemExit(f"footsim-scenes: n and seed must be integers, got n={args['n']!r} seed={args['seed']!r}")
-    if n <= 0:
-        raise SystemExit(f"footsim-scenes: n must be > 0, got {n}")
-    flag = str(args["obstacles"]).lower()
-    if flag not in ("true", "false"):
-        raise SystemExit(f"footsim-scenes: obstacles must be true or false, got {args['obstacles']!r}")
-    scenes = sample_scenes(SceneSampler(obstacles=flag == "true"), n, seed)
-    save_scenes(args["out"], scenes, meta={"n": n, "seed": seed, "obstacles": flag == "true"})
-    print(f"wrote {n} scenes to {args['out']}")

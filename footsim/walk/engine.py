@@ -2,7 +2,7 @@
 
 Behaviour follows the Bit-Bots / Rhoban *Quintic Walk* (thesis 3.3, ``shared/FACTS.md``);
 the implementation is our own, numpy (no simulator); the foot-overlap band of the swing-path
-check is the compiled kernel the footstep placement uses (:mod:`footsim.kernels2d`).
+check is the compiled kernel the footstep placement uses (:mod:`footsim.walk.kernels`).
 
 * The walk phase runs over [0, 1) per double step; phase < 0.5 is left support, so the right
   foot flies first (``DoubleStep.first``), then the left foot.
@@ -44,14 +44,17 @@ from functools import cached_property
 
 import numpy as np
 
-from footsim import kernels2d
 from footsim.geometry import Pose2D, mean_pose, wrap_angles
+from footsim.walk import kernels
 from footsim.walk.footsteps import DoubleStep, FeetState, Footstep, FootstepGeometry, Side
 from footsim.walk.ik import LEG_JOINT_NAMES, LegGeometry, legs_ik
 from footsim.walk.params import WalkParams
 from footsim.walk.spline import PiecewiseQuintic, knots_state, sample_positions
 
 __all__ = ["LEG_JOINT_NAMES", "QuinticWalk", "WalkState", "WalkTrajectory"]
+
+DEFAULT_LEG = LegGeometry()  # Wolfgang-OP's leg (FACTS.md), the engine's default
+ORIGIN = Pose2D()
 
 
 class WalkState(IntEnum):
@@ -177,10 +180,10 @@ def _transform_trunk_state(state: np.ndarray, frame: Pose2D) -> np.ndarray:
 def _overlap_bands(x: np.ndarray, theta: np.ndarray, half_l: float, half_w: float) -> tuple[np.ndarray, np.ndarray]:
     """``footsteps._overlap_band_y`` per sample: the y interval where a foot at (x, y, theta)
     overlaps an identical foot at the origin; NaN where no y overlaps.  The band is the compiled
-    kernel ``FootstepGeometry.landing`` uses (:func:`footsim.kernels2d.overlap_band`), looped in
+    kernel ``FootstepGeometry.landing`` uses (:func:`footsim.walk.kernels.overlap_band`), looped in
     compiled code: the numpy version of the four axes cost more than the rest of a double step."""
     lo, hi = np.empty(x.shape), np.empty(x.shape)
-    kernels2d.overlap_bands(
+    kernels.overlap_bands(
         np.ascontiguousarray(x, dtype=float), np.cos(theta), np.sin(theta), float(half_l), float(half_w), lo, hi
     )
     return lo, hi
@@ -197,7 +200,7 @@ class QuinticWalk:
         self,
         params: WalkParams,
         geometry: FootstepGeometry,
-        leg: LegGeometry = LegGeometry(),
+        leg: LegGeometry = DEFAULT_LEG,
         control_dt: float = 1.0 / 500.0,
         joint_limits=None,
     ):
@@ -243,7 +246,7 @@ class QuinticWalk:
 
     # --- state ---------------------------------------------------------------------------
 
-    def reset(self, pose: Pose2D = Pose2D()) -> None:
+    def reset(self, pose: Pose2D = ORIGIN) -> None:
         """Stand still (IDLE) with the feet at rest around ``pose`` (the navigation frame)."""
         self._state = WalkState.IDLE
         self._tick = 0

@@ -21,8 +21,8 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-from footsim import kernels2d
 from footsim.geometry import Pose2D, mean_pose
+from footsim.walk import kernels
 
 
 class Side(str, Enum):
@@ -151,8 +151,8 @@ class FeetState(NamedTuple):
 def _overlap_band_y(x: float, theta: float, half_l: float, half_w: float) -> tuple[float, float] | None:
     """Lateral offsets y at which a foot at (x, y, theta) overlaps an identical foot at the origin:
     an interval, or None when some axis separates for every y (compiled:
-    :func:`footsim.kernels2d.overlap_band`, the separating-axis theorem on the four box axes)."""
-    overlaps, lo, hi = kernels2d.overlap_band(float(x), math.cos(theta), math.sin(theta), float(half_l), float(half_w))
+    :func:`footsim.walk.kernels.overlap_band`, the separating-axis theorem on the four box axes)."""
+    overlaps, lo, hi = kernels.overlap_band(float(x), math.cos(theta), math.sin(theta), float(half_l), float(half_w))
     return (lo, hi) if overlaps else None
 
 
@@ -203,7 +203,7 @@ class FootstepGeometry:
             "_half_gapped",
             (0.5 * (self.foot_length + self.min_foot_gap), 0.5 * (self.foot_width + self.min_foot_gap)),
         )
-        # For the compiled placement (footsim.kernels2d.land): the limits, the foot distance, the
+        # For the compiled placement (footsim.walk.kernels.land): the limits, the foot distance, the
         # distance beyond which the feet can't overlap (two circumradii) and the grown half plate.
         clear = math.hypot(self.foot_length + self.min_foot_gap, self.foot_width + self.min_foot_gap)
         object.__setattr__(
@@ -252,9 +252,7 @@ class FootstepGeometry:
         of the overlap band — the foot–foot interference that makes inward steps shorter.
         """
         left = flying is Side.LEFT
-        x, y, theta, interfered = kernels2d.land(
-            left, float(step[0]), float(step[1]), float(step[2]), self.kernel_params
-        )
+        x, y, theta, interfered = kernels.land(left, float(step[0]), float(step[1]), float(step[2]), self.kernel_params)
         return (
             Pose2D(x, (self.foot_distance if left else -self.foot_distance) + y, theta),
             Footstep(x, y, theta),
@@ -269,22 +267,22 @@ class FootstepGeometry:
         step, feet after the second, executed DoubleStep, number of interfering steps)``.
         """
         # The right foot flies first (left support), then the left foot (right support).
-        # Compiled placement (footsim.kernels2d), tuple.__new__ below: this runs on every 2D env step.
+        # Compiled placement (footsim.walk.kernels), tuple.__new__ below: this runs on every 2D env step.
         first, second = double_step
         left, g = feet[0], self.kernel_params
         if perturb is None:  # both footsteps in one call
             return placed_double_step(
                 feet[0],
-                kernels2d.place_double_step(
+                kernels.place_double_step(
                     left[0], left[1], left[2], first[0], first[1], first[2], second[0], second[1], second[2], g
                 ),
             )
         # the next step starts from where the perturbed foot really is
-        rx, ry, rt, x1, y1, t1, hit_first = kernels2d.place_footstep(
+        rx, ry, rt, x1, y1, t1, hit_first = kernels.place_footstep(
             False, left[0], left[1], left[2], first[0], first[1], first[2], g
         )
         right = perturb(_new(Pose2D, (rx, ry, rt)))
-        lx, ly, lt, x2, y2, t2, hit_second = kernels2d.place_footstep(
+        lx, ly, lt, x2, y2, t2, hit_second = kernels.place_footstep(
             True, right[0], right[1], right[2], second[0], second[1], second[2], g
         )
         left = perturb(_new(Pose2D, (lx, ly, lt)))
@@ -298,7 +296,7 @@ class FootstepGeometry:
 
 def placed_double_step(left_before: Pose2D, placed) -> tuple[FeetState, FeetState, DoubleStep, int]:
     """:meth:`FootstepGeometry.execute`'s result from the left foot's pose before the double step
-    and the first 14 values of :func:`footsim.kernels2d.place_double_step` (or of a kernel that
+    and the first 14 values of :func:`footsim.walk.kernels.place_double_step` (or of a kernel that
     starts with them): ``(feet after the first half step, after the second, executed, interfering
     steps)``."""
     rx, ry, rt, x1, y1, t1, hit_first, lx, ly, lt, x2, y2, t2, hit_second = placed[:14]

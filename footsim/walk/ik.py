@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from footsim.kernels2d import _compiled
+from footsim.compiled import compiled
 
 LEG_JOINTS = ("HipYaw", "HipRoll", "HipPitch", "Knee", "AnklePitch", "AnkleRoll")
 
@@ -270,7 +270,7 @@ def legs_ik(
     return joints, reachable
 
 
-@_compiled
+@compiled
 def _rpy_matrix(roll, pitch, yaw):
     """``Rz(yaw) Ry(pitch) Rx(roll)`` as 9 floats, row by row."""
     cr, sr = math.cos(roll), math.sin(roll)
@@ -289,7 +289,7 @@ def _rpy_matrix(roll, pitch, yaw):
     )
 
 
-@_compiled
+@compiled
 def _legs_ik(trunk, left, right, hip_y, hip_z, L1, L2, a2s, limits, use_limits, joints, reachable):
     """:func:`legs_ik`'s loop: per sample the trunk rotation, then each leg's sole in the trunk
     frame (p = Rt^T d, R = Rt^T Rf) and :func:`solve_leg_ik`'s formulas on scalars."""

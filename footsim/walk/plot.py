@@ -1,17 +1,12 @@
-"""Look at the walk: foot and trunk trajectories of a few double steps, drawn to a PNG.
+"""Look at the walk: foot and trunk trajectories of a few double steps, drawn to a PNG
+(``footsim-walkplot``, :mod:`footsim.tools.walkplot`).
 
-``footsim-walkplot out=walk.png [steps="0.08,0,0,0.08,0,0;..."] [vel=vx,vy,omega] [n=1]
-[stop=true] [dt=0.002]`` — ``steps`` are double steps (right foot x y θ, then left foot x y θ,
-``;`` between double steps), repeated ``n`` times; ``vel`` gives velocity orders instead.  The
-plot shows the start sequence, the double steps and (with ``stop=true``) the stop: x, y, z and
-yaw of both soles and the trunk over time (half-step boundaries dotted), and a top view with
-the footprints where each foot was put down.
+The plot shows the start sequence, the double steps and (optionally) the stop: x, y, z and yaw of
+both soles and the trunk over time (half-step boundaries dotted), and a top view with the
+footprints where each foot was put down.
 """
 
 from __future__ import annotations
-
-import sys
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -19,10 +14,6 @@ from footsim.walk.engine import QuinticWalk, WalkTrajectory
 from footsim.walk.footsteps import DoubleStep, FootstepGeometry, StepLimits
 from footsim.walk.params import WalkParams
 
-if TYPE_CHECKING:
-    from matplotlib.axes import Axes
-
-_DEFAULTS = {"out": None, "steps": "0.08,0,0,0.08,0,0", "vel": "", "n": "2", "stop": "true", "dt": "0.002"}
 _COLOURS = {"left": "tab:blue", "right": "tab:red", "trunk": "black"}
 
 
@@ -106,51 +97,3 @@ def plot_walk(trajectories: list[WalkTrajectory], engine: QuinticWalk, out: str,
     fig.suptitle(title or "quintic walk")
     fig.savefig(out, dpi=110)
     plt.close(fig)
-
-
-def _parse_args(argv: list[str]) -> dict:
-    args = dict(_DEFAULTS)
-    for arg in argv:
-        key, sep, value = arg.partition("=")
-        if not sep or key not in _DEFAULTS:
-            raise SystemExit(f"footsim-walkplot: expected key=value with key in {sorted(_DEFAULTS)}, got {arg!r}")
-        args[key] = value
-    if not args["out"]:
-        raise SystemExit("footsim-walkplot: out=FILE.png is required")
-    return args
-
-
-def main(argv: list[str] | None = None) -> None:
-    args = _parse_args(sys.argv[1:] if argv is None else argv)
-    try:
-        repeats = int(args["n"])
-        dt = float(args["dt"])
-        stop = {"true": True, "false": False}[args["stop"].lower()]
-        params = WalkParams()
-        geometry_probe = QuinticWalk(
-            params, FootstepGeometry(StepLimits(), foot_distance=params.foot_distance), control_dt=dt
-        )
-        if args["vel"]:
-            vx, vy, omega = (float(v) for v in args["vel"].split(","))
-            orders = [geometry_probe.footsteps_from_velocity(vx, vy, omega)]
-            title = f"velocity order vx={vx} vy={vy} ω={omega}"
-        else:
-            orders = [
-                DoubleStep.from_array([float(v) for v in chunk.split(",")])
-                for chunk in args["steps"].split(";")
-                if chunk
-            ]
-            title = "double steps " + "; ".join(args["steps"].split(";"))
-        if repeats < 1 or not orders:
-            raise ValueError("need at least one double step and n >= 1")
-        if not all(np.isfinite(order.as_array()).all() for order in orders):
-            raise ValueError("double steps must be finite numbers")
-    except (ValueError, KeyError) as error:
-        raise SystemExit(f"footsim-walkplot: bad arguments ({error})") from None
-    engine, trajectories = simulate(orders * repeats, stop=stop, params=params, control_dt=dt)
-    plot_walk(trajectories, engine, args["out"], title=f"{title} ×{repeats}" + (", then stop" if stop else ""))
-    print(f"wrote {args['out']}")
-
-
-if __name__ == "__main__":  # pragma: no cover
-    main()

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from footsim.kernels2d import _compiled
+from footsim.compiled import compiled
 
 _POWERS = np.arange(6.0)
 _ZEROS = {1: (0.0, 0.0, 0.0), 2: (0.0, 0.0), 3: (0.0,)}
@@ -61,7 +61,7 @@ def evaluate_polynomial(coefficients: np.ndarray, tau: np.ndarray) -> tuple[np.n
     return pos, vel, acc
 
 
-@_compiled
+@compiled
 def _quintic_high(dp, v0, a0, v1, a1, T):
     """``c3, c4, c5`` of the quintic through (p0, v0, a0) → (p0 + dp, v1, a1) over ``T``
     (``c0, c1, c2`` are p0, v0, a0 / 2): :func:`quintic_coefficients` on scalars."""
@@ -263,7 +263,7 @@ class PiecewiseQuintic:
         return out
 
 
-@_compiled
+@compiled
 def _sample_positions(coefficients, segment_start, breaks, offsets, last_column, low, high, times, out):
     """:meth:`PiecewiseQuintic.positions` compiled: ``times`` is ``(1, n)`` (every channel) or
     ``(channels, n)``; writes ``(channels, n)`` positions into ``out``."""
@@ -285,7 +285,7 @@ def _sample_positions(coefficients, segment_start, breaks, offsets, last_column,
             )
 
 
-@_compiled
+@compiled
 def _segment_tables(data, n_segments, coefficients, segment_start, breaks):
     """:class:`PiecewiseQuintic`'s tables from its padded knots ``data (channels, knots, 4)``:
     per segment column the quintic's coefficients (the closed form of
@@ -325,7 +325,7 @@ def _segment_tables(data, n_segments, coefficients, segment_start, breaks):
     return 0, t_min, span
 
 
-@_compiled
+@compiled
 def _query_frame(n_segments, n_seg_max, t_min, span):
     """The query band ``(low, high)``, each channel's breakpoint shift and its last coefficient
     column, for tables from :func:`_segment_tables` (see :class:`PiecewiseQuintic`)."""
@@ -338,7 +338,7 @@ def _query_frame(n_segments, n_seg_max, t_min, span):
     return t_min - band, t_min + span - band, offsets, last_column
 
 
-@_compiled
+@compiled
 def _tables_and_positions(data, n_segments, times, out):
     """:func:`sample_positions`: :func:`_segment_tables`, :func:`_query_frame`, then
     :func:`_sample_positions`, as :class:`PiecewiseQuintic` does them.  Returns the tables'

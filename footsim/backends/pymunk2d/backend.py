@@ -1,4 +1,4 @@
-"""The 2D geometric backend (thesis 5.1.1).
+"""The 2D geometric backend (thesis 5.1.1): :class:`Pymunk2DBackend`.
 
 Feet land exactly where the planar footstep geometry puts them (including foot–foot
 interference); the feet and the trunk's footprint are rectangles, obstacles static circles, and
@@ -7,8 +7,9 @@ foot's mid-swing pose.  The overlap test is closed-form (:func:`box_hits_circles
 from the circle's centre to the rectangle is at most the radius), which is what a pymunk shape
 query of the same polygon against the same circles answers (``tests/test_backend_pymunk2d.py``
 checks the two against each other); the six tests of a double step run in one compiled call
-(:func:`footsim.kernels2d.double_step_collides`; without execution noise the placement and the
-navigation pose join them in :func:`footsim.kernels2d.execute_double_step`).
+(:func:`footsim.backends.pymunk2d.collision.double_step_collides`; without execution noise the
+placement and the navigation pose join them in
+:func:`footsim.backends.pymunk2d.collision.execute_double_step`).
 :meth:`Pymunk2DBackend.space` builds that pymunk space on demand.  The navigation pose is the mean
 of the two feet.
 
@@ -27,8 +28,10 @@ from dataclasses import fields
 import numpy as np
 import pymunk
 
-from footsim import kernels2d
 from footsim.backends.base import Backend, RenderOverlay, StepResult
+from footsim.backends.pymunk2d import collision
+from footsim.backends.pymunk2d.render import draw_scene
+from footsim.calibration.execution_model import ExecutionModel
 from footsim.geometry import Pose2D, mean_pose
 from footsim.robots.spec import RobotSpec
 from footsim.scene import Scene, circle_array
@@ -47,10 +50,10 @@ def box_hits_circles(x: float, y: float, theta: float, half_length: float, half_
 
     Closed form of a pymunk shape query of that polygon against static circles: the closest
     point of the rectangle to the circle's centre lies within ``r`` (centre inside: distance 0).
-    The compiled :func:`footsim.kernels2d.box_hits_circles` on any sequence of ``(x, y, r)``
+    The compiled :func:`footsim.backends.pymunk2d.collision.box_hits_circles` on any sequence of ``(x, y, r)``
     (the backend calls the kernels directly, with the episode's circles as an array).
     """
-    return kernels2d.box_hits_circles(
+    return collision.box_hits_circles(
         float(x), float(y), float(theta), float(half_length), float(half_width), circle_array(circles)
     )
 
@@ -105,8 +108,6 @@ class Pymunk2DBackend(Backend):
         self.collision_distance = collision_distance
         self.execution_model = None
         if execution_model:  # commanded -> executed displacement fitted on a 3D backend (footsim-calibrate)
-            from footsim.calibrate import ExecutionModel
-
             self.execution_model = ExecutionModel.load(execution_model, noise=bool(execution_noise))
         self.execution_falls = bool(execution_falls)
         self.robot = robot
@@ -118,7 +119,7 @@ class Pymunk2DBackend(Backend):
         # Broad phase: a shape centred farther than its circumradius (+ a rounding margin) from
         # an obstacle can't touch it.
         reach = max(math.hypot(*foot_half), math.hypot(*trunk_half)) * (1.0 + 1e-9) + 1e-9
-        self._dims = np.array([reach, *foot_half, *trunk_half], dtype=np.float64)  # kernels2d.double_step_collides
+        self._dims = np.array([reach, *foot_half, *trunk_half], dtype=np.float64)  # collision.double_step_collides
         self._space: pymunk.Space | None = None
         self._circles = circle_array(())  # the scene's (x, y, r), obstacles and ball
         self.feet: FeetState | None = None
@@ -187,7 +188,7 @@ class Pymunk2DBackend(Backend):
         if not perturbed and self.execution_model is None and self.collision_model == "footprint":
             # the common case in one compiled call: placement, collision test and navigation pose
             (first, second), (left, right) = double_step, before
-            values = kernels2d.execute_double_step(
+            values = collision.execute_double_step(
                 right[0],
                 right[1],
                 right[2],
@@ -275,9 +276,9 @@ class Pymunk2DBackend(Backend):
     # -- collisions -----------------------------------------------------------------------
     def _double_step_collides(self, before: FeetState, after_first: FeetState, after_second: FeetState) -> bool:
         """Each flying foot at mid-swing and at put-down, and the trunk at each put-down, in one
-        compiled call (:func:`footsim.kernels2d.double_step_collides`, broad phase included)."""
+        compiled call (:func:`footsim.backends.pymunk2d.collision.double_step_collides`, broad phase included)."""
         (sx, sy, st), ((mx, my, mt), (rx, ry, rt)), (ex, ey, et) = before[1], after_first, after_second[0]
-        return kernels2d.double_step_collides(self._circles, self._dims, sx, sy, st, rx, ry, rt, mx, my, mt, ex, ey, et)
+        return collision.double_step_collides(self._circles, self._dims, sx, sy, st, rx, ry, rt, mx, my, mt, ex, ey, et)
 
     def _nav_too_close(self, nav: Pose2D) -> bool:
         """Thesis check: the navigation pose within ``collision_distance`` of a circle's edge."""
@@ -286,8 +287,6 @@ class Pymunk2DBackend(Backend):
 
     # -- rendering ------------------------------------------------------------------------
     def render(self, overlay: RenderOverlay | None = None) -> np.ndarray:
-        from footsim.render2d import draw_scene
-
         return draw_scene(self.scene, self.history, self.nav_history, self.robot, overlay)
 
     def close(self) -> None:

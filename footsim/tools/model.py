@@ -9,7 +9,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from footsim.robots.spec import ROBOTS, get_robot
+from footsim.robots.registry import ROBOTS, get_robot
+from footsim.robots.urdf import urdf_xml
 
 FORMATS = ("mjcf", "urdf")
 KEYS = {"robot": "robot name", "format": "one of " + "|".join(FORMATS), "out": "output file, or - for stdout"}
@@ -53,8 +54,6 @@ def render(robot: str, fmt: str) -> str:
 
         return mjcf_xml(spec)
     if fmt == "urdf":
-        from footsim.robots.urdf import urdf_xml
-
         return urdf_xml(spec)
     raise UsageError(f"format must be one of {', '.join(FORMATS)}, got {fmt!r}")
 

@@ -47,8 +47,3 @@ def bench_walk(repeats: int = 5, double_steps: int = 100, control_dt: float = 1.
         "control_hz": 1.0 / control_dt,
         "repeats": repeats,
     }
-
-
-if __name__ == "__main__":  # pragma: no cover - manual use
-    for key, value in bench_walk().items():
-        print(f"{key}: {value:.4g}" if isinstance(value, float) else f"{key}: {value}")

@@ -1,4 +1,5 @@
-"""``footsim-walktune backend=B [walk.KEY=V ...]``: how fast does this walk go without falling?
+"""The walk-tuning objective (``footsim-walktune``, :mod:`footsim.tools.walktune`): how fast does
+this walk go without falling?
 
 Measures the Hamburg Bit-Bots' walk-tuning objective (shared/FACTS.md, "Quintic walk engine")
 
@@ -39,9 +40,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from omegaconf import OmegaConf
 
+from footsim import config as fconf
+from footsim.backends.base import backend_class
 from footsim.geometry import Pose2D, wrap_angle
+from footsim.rl.common import write_json
 from footsim.scene import Scene
+from footsim.walk.footsteps import DoubleStep
 
 DIRECTIONS = {
     "forward": ("v_forward", (1.0, 0.0, 0.0), "x", 1.0),
@@ -56,8 +62,6 @@ WEIGHTS = {"v_forward": 1.0, "v_backward": 1.0, "v_lateral": 2.0, "v_turn": 0.2}
 
 
 def _order(backend, pattern, level: float, command: str):
-    from footsim.walk.footsteps import DoubleStep
-
     x, y, yaw = (level * p for p in pattern)
     if command == "action":
         return DoubleStep.from_action([x, y, yaw, x, y, yaw], backend.robot.step_limits)
@@ -173,9 +177,6 @@ def format_result(result: dict) -> str:
 def run(cfg, run_dir: Path | None = None) -> dict:
     """Build the backend from a composed config (``backend``, ``robot``, ``walk``, ``tune``) and
     measure; writes ``walktune.json`` into ``run_dir`` when given."""
-    from footsim import config as fconf
-    from footsim.backends.base import backend_class
-    from footsim.rl.common import write_json
 
     plain = fconf.to_plain(cfg)
     robot = fconf.build_robot(plain["robot"])
@@ -214,17 +215,13 @@ def enqueue_walk(storage: str, study_name: str, walk: str | dict, keys=None, fix
     ``fixed``, e.g. ``("freq",)`` when the sweep fixes ``walk.freq``) are enqueued; creates the study
     (direction maximize) when missing.  Returns the enqueued params.
 
-        python -c "from footsim.walktune import enqueue_walk; enqueue_walk(
+        python -c "from footsim.calibration.walktune import enqueue_walk; enqueue_walk(
             'sqlite:///multirun/hpo/walk_pybullet/optuna.db', 'walk_pybullet', 'pybullet')"
     """
     import optuna
 
-    from footsim import config as fconf
-
     values = fconf.load_preset("walk", walk)
     if keys is None:
-        from omegaconf import OmegaConf
-
         params = OmegaConf.load(fconf.conf_dir() / "hpo" / "walk.yaml").hydra.sweeper.params
         keys = [k[len("walk.") :] for k in params if k[len("walk.") :] not in fixed]
     if storage.startswith("sqlite:///"):
@@ -233,23 +230,3 @@ def enqueue_walk(storage: str, study_name: str, walk: str | dict, keys=None, fix
     enqueued = {f"walk.{k}": float(values[k]) for k in keys}
     study.enqueue_trial(enqueued, user_attrs={"enqueued": str(walk) if isinstance(walk, str) else "mapping"})
     return enqueued
-
-
-def _main(cfg):
-    from hydra.core.hydra_config import HydraConfig
-
-    result = run(cfg, Path(HydraConfig.get().runtime.output_dir))
-    print(format_result(result), flush=True)
-    return result["objective"]
-
-
-def main() -> None:
-    import hydra
-
-    from footsim.config import conf_dir
-
-    hydra.main(config_path=str(conf_dir()), config_name="walktune", version_base="1.3")(_main)()
-
-
-if __name__ == "__main__":
-    main()

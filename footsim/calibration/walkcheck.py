@@ -1,4 +1,4 @@
-"""``footsim-walkcheck [backends=mujoco,dm_control,pybullet] [out=FILE.md]``: does it walk?
+"""Open-loop walking checks (``footsim-walkcheck``, :mod:`footsim.tools.walkcheck`): does it walk?
 
 Runs a standard set of open-loop double-step sequences on each backend and compares the
 executed displacement with the commanded one — the displacement the planar footstep geometry
@@ -11,14 +11,16 @@ differences per backend pair, the 2D backend included.
 from __future__ import annotations
 
 import math
-import sys
 from dataclasses import dataclass
 from itertools import combinations
 
 import numpy as np
 
+from footsim import config as fconf
+from footsim.calibration.execution_model import ExecutionModel
 from footsim.geometry import Pose2D, wrap_angle
 from footsim.scene import Scene
+from footsim.walk.footsteps import DoubleStep
 
 TOLERANCE = 0.25
 
@@ -51,7 +53,6 @@ def standard_sequences() -> list[Sequence]:
 def run_sequence(backend, sequence: Sequence, seed: int = 0) -> dict:
     """Execute a sequence on a backend from the origin in an empty scene."""
     start = backend.reset(Scene(goal=Pose2D(100.0, 0.0, 0.0)), np.random.default_rng(seed))
-    from footsim.walk.footsteps import DoubleStep
 
     pose, fell, error, steps, total_yaw = start, False, None, 0, 0.0
     for action in sequence.actions:
@@ -82,7 +83,7 @@ def run_sequence(backend, sequence: Sequence, seed: int = 0) -> dict:
     }
 
 
-def _error_ratio(executed: dict, commanded: dict, measure: str) -> float:
+def error_ratio(executed: dict, commanded: dict, measure: str) -> float:
     if measure == "yaw":
         return abs(executed["yaw"] - commanded["yaw"]) / max(abs(commanded["yaw"]), 1e-9)
     ex, ey = executed["displacement"]
@@ -91,8 +92,6 @@ def _error_ratio(executed: dict, commanded: dict, measure: str) -> float:
 
 
 def make_backend(name: str):
-    from footsim import config as fconf
-
     walk = fconf.build_walk(fconf.load_preset("walk", fconf.walk_preset_for(name)))
     robot = fconf.build_robot("wolfgang")
     return fconf.build_backend(fconf.load_preset("backend", {"name": name}), robot, walk)
@@ -117,7 +116,7 @@ def walkcheck(backends: list[str]) -> tuple[dict, str]:
         ]
         for seq in sequences:
             cmd, ex = results["pymunk"][seq.name], results[name][seq.name]
-            ratio = _error_ratio(ex, cmd, seq.measure)
+            ratio = error_ratio(ex, cmd, seq.measure)
             ok = not ex["fell"] and ex["sim_error"] is None and ratio <= TOLERANCE
             fmt = (
                 (lambda r: f"{r['yaw']:+.2f} rad")
@@ -146,20 +145,68 @@ def walkcheck(backends: list[str]) -> tuple[dict, str]:
     return results, "\n".join(lines)
 
 
-def main(argv: list[str] | None = None) -> None:
-    from footsim.utils import atomic_write_text, parse_kv_args
-
-    args = parse_kv_args(
-        sys.argv[1:] if argv is None else argv,
-        {"backends": "mujoco,dm_control,pybullet", "out": ""},
-        "footsim-walkcheck",
-    )
-    from footsim.backends.base import require_known_backends
-
-    backends = [b for b in args["backends"].split(",") if b]
-    require_known_backends(backends, "footsim-walkcheck")
-    backends = [b for b in backends if b != "pymunk"]  # the consistency report adds 2D itself
-    _, table = walkcheck(backends)
-    print(table)
-    if args["out"]:
-        atomic_write_text(args["out"], table + "\n")
+# -- 2D vs 3D consistency -----------------------------------------------------------------------
+def execution_model_consistency(model_path: str, backend3d: str = "mujoco", seed: int = 0) -> tuple[list[dict], str]:
+    """Walkcheck sequences on pymunk (geometry), pymunk + model (mean, and with noise) and the 3D
+    backend: final planar pose differences to the 3D backend, over the full sequences (as
+    ``footsim-walkcheck``) and with the 2D runs cut at the double step where the 3D robot fell."""
+    ExecutionModel.load(model_path)  # a bad file fails before the 3D runs
+    sequences = standard_sequences()
+    ref_backend = make_backend(backend3d)
+    try:
+        ref = {s.name: run_sequence(ref_backend, s, seed=seed) for s in sequences}
+    finally:
+        ref_backend.close()
+    walk = fconf.build_walk(fconf.load_preset("walk", fconf.walk_preset_for("pymunk")))
+    robot = fconf.build_robot("wolfgang")
+    variants = {
+        "pymunk (geometry)": {},
+        "pymunk + model (mean)": {"execution_model": model_path, "execution_noise": False},
+        "pymunk + model (with noise)": {"execution_model": model_path},
+    }
+    rows = []
+    for label, options in variants.items():
+        backend = fconf.build_backend({"name": "pymunk", **options}, robot, walk)
+        try:
+            for cut in (False, True):
+                dp, dy, dyaw = [], [], []
+                for s in sequences:
+                    seq = s
+                    if cut and ref[s.name]["steps"] < len(s.actions):
+                        seq = Sequence(s.name, s.actions[: ref[s.name]["steps"]], s.measure, s.stop)
+                    ra = run_sequence(backend, seq, seed=seed)
+                    a, b = ra["pose"], ref[s.name]["pose"]
+                    dyaw.append(abs(ra["yaw"] - ref[s.name]["yaw"]))
+                    dp.append(math.hypot(a.x - b.x, a.y - b.y))
+                    dy.append(abs(wrap_angle(a.theta - b.theta)))
+                rows.append(
+                    {
+                        "pair": f"{label} – {backend3d}",
+                        "sequences": "cut at 3D fall" if cut else "full",
+                        "pos_mean": float(np.mean(dp)),
+                        "pos_max": float(np.max(dp)),
+                        "yaw_mean": float(np.mean(dy)),
+                        "yaw_max": float(np.max(dy)),
+                        "turn_mean": float(np.mean(dyaw)),
+                        "turn_max": float(np.max(dyaw)),
+                    }
+                )
+        finally:
+            backend.close()
+    lines = [
+        "| pair | sequences | position diff mean [m] | max [m] | yaw diff mean [rad] | max [rad] "
+        "| total turn diff mean [rad] | max [rad] |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for r in sorted(rows, key=lambda r: r["sequences"] != "full"):
+        lines.append(
+            f"| {r['pair']} | {r['sequences']} | {r['pos_mean']:.3f} | {r['pos_max']:.3f} | "
+            f"{r['yaw_mean']:.3f} | {r['yaw_max']:.3f} | {r['turn_mean']:.3f} | {r['turn_max']:.3f} |"
+        )
+    falls = [
+        f"{s.name} ({ref[s.name]['steps']}/{len(s.actions)})"
+        for s in sequences
+        if ref[s.name]["fell"] or ref[s.name]["sim_error"]
+    ]
+    lines += ["", f"{backend3d} fell in: {', '.join(falls) if falls else 'none'}"]
+    return rows, "\n".join(lines)

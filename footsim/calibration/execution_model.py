@@ -1,8 +1,9 @@
-"""Calibrated 2D: ``footsim-calibrate backend=mujoco [n_steps=600] [seed=0] [scale=0.7] out=FILE.json``.
+"""Calibrated 2D: the execution model, fitted on a 3D backend (``footsim-calibrate``,
+:mod:`footsim.tools.calibrate`).
 
-Rolls out random double steps (with probability ``repeat`` the previous action again, so steady
-walking dominates as in a policy's gait) on a 3D backend from an empty scene, resetting after a
-fall.  For every double step it records
+:func:`collect` rolls out random double steps (with probability ``repeat`` the previous action
+again, so steady walking dominates as in a policy's gait) on a 3D backend from an empty scene,
+resetting after a fall.  For every double step it records
 
 * the displacement the planar footstep geometry predicts (what the 2D backend executes): the
   navigation frame (mean of the two feet) after the step in the frame before it, from the walk
@@ -11,27 +12,32 @@ fall.  For every double step it records
   the frame of the base before it (``StepResult.pose``);
 * whether it fell.
 
-The actions are uniform in ``[-1, 1]`` times a magnitude drawn in ``[0.25, 1] × scale`` per new
-action.  From these records it fits the **execution model**: per output (dx, dy, dθ) a linear
-regression on the predicted displacement (``features=dx,dy,dtheta`` by default; ``abs_dx, abs_dy,
-abs_dtheta`` can be added) with intercept and residual σ, and the fall probability per double step
-as a logistic regression on the absolute action values.  ``backend=pymunk backend.execution_model=FILE`` makes the 2D
-backend execute through it (:class:`ExecutionModel`, ``footsim.backends.pymunk2d``).
+Actions are uniform in ``[-1, 1]`` times a magnitude drawn in ``[0.25, 1] × scale`` per new
+action.  :func:`fit` fits the **execution model**: per output (dx, dy, dθ) a linear regression on
+the predicted displacement (``features=dx,dy,dtheta`` by default; ``abs_dx, abs_dy, abs_dtheta``
+can be added) with intercept and residual σ, and the fall probability per double step as a
+logistic regression on the absolute action values.  ``backend=pymunk backend.execution_model=FILE``
+makes the 2D backend execute through it (:class:`ExecutionModel`, ``footsim.backends.pymunk2d``).
 
-``footsim-calibrate compare=FILE.json [backend=mujoco] [out=FILE.md]`` runs the walkcheck
-sequences on pymunk with and without the model and on the 3D backend and prints the
-consistency table (final planar pose differences).
+:func:`footsim.calibration.walkcheck.execution_model_consistency` (``footsim-calibrate
+compare=FILE.json``) runs the walkcheck sequences on
+pymunk with and without the model and on the 3D backend and builds the consistency table (final
+planar pose differences).
 """
 
 from __future__ import annotations
 
 import json
 import math
-import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
+
+from footsim.geometry import Pose2D
+from footsim.scene import Scene
+from footsim.walk.footsteps import DoubleStep, FootstepGeometry
 
 FORMAT = "footsim-execution-model"
 VERSION = 1
@@ -150,9 +156,6 @@ def collect(
 ) -> dict[str, np.ndarray]:
     """Random double steps on ``backend``; arrays ``action (n,6), predicted (n,3), executed (n,3),
     fell (n,)`` (``executed`` is NaN where the robot fell or the sim failed)."""
-    from footsim.geometry import Pose2D
-    from footsim.scene import Scene
-    from footsim.walk.footsteps import DoubleStep, FootstepGeometry
 
     rng = np.random.default_rng(seed)
     robot = backend.robot
@@ -164,8 +167,6 @@ def collect(
     resets = 0
     iterator = range(n_steps)
     if progress:
-        from tqdm import tqdm
-
         iterator = tqdm(iterator, desc=f"calibrating on {backend.name}", unit="double step", leave=False)
     for _ in iterator:
         if pose is None:
@@ -262,143 +263,3 @@ def fit(data: dict[str, np.ndarray], meta: dict | None = None, names=DEFAULT_FEA
         "uncorrected_rmse": np.sqrt((raw**2).mean(axis=0)).tolist(),
         "meta": meta or {},
     }
-
-
-# -- 2D vs 3D consistency -----------------------------------------------------------------------
-def consistency(model_path: str, backend3d: str = "mujoco", seed: int = 0) -> tuple[list[dict], str]:
-    """Walkcheck sequences on pymunk (geometry), pymunk + model (mean, and with noise) and the 3D
-    backend: final planar pose differences to the 3D backend, over the full sequences (as
-    ``footsim-walkcheck``) and with the 2D runs cut at the double step where the 3D robot fell."""
-    from footsim import config as fconf
-    from footsim.geometry import wrap_angle
-    from footsim.walkcheck import Sequence, make_backend, run_sequence, standard_sequences
-
-    ExecutionModel.load(model_path)  # a bad file fails before the 3D runs
-    sequences = standard_sequences()
-    ref_backend = make_backend(backend3d)
-    try:
-        ref = {s.name: run_sequence(ref_backend, s, seed=seed) for s in sequences}
-    finally:
-        ref_backend.close()
-    walk = fconf.build_walk(fconf.load_preset("walk", fconf.walk_preset_for("pymunk")))
-    robot = fconf.build_robot("wolfgang")
-    variants: dict[str, dict[str, Any]] = {
-        "pymunk (geometry)": {},
-        "pymunk + model (mean)": {"execution_model": model_path, "execution_noise": False},
-        "pymunk + model (with noise)": {"execution_model": model_path},
-    }
-    rows = []
-    for label, options in variants.items():
-        backend = fconf.build_backend({"name": "pymunk", **options}, robot, walk)
-        try:
-            for cut in (False, True):
-                dp, dy, dyaw = [], [], []
-                for s in sequences:
-                    seq = s
-                    if cut and ref[s.name]["steps"] < len(s.actions):
-                        seq = Sequence(s.name, s.actions[: ref[s.name]["steps"]], s.measure, s.stop)
-                    ra = run_sequence(backend, seq, seed=seed)
-                    a, b = ra["pose"], ref[s.name]["pose"]
-                    dyaw.append(abs(ra["yaw"] - ref[s.name]["yaw"]))
-                    dp.append(math.hypot(a.x - b.x, a.y - b.y))
-                    dy.append(abs(wrap_angle(a.theta - b.theta)))
-                rows.append(
-                    {
-                        "pair": f"{label} – {backend3d}",
-                        "sequences": "cut at 3D fall" if cut else "full",
-                        "pos_mean": float(np.mean(dp)),
-                        "pos_max": float(np.max(dp)),
-                        "yaw_mean": float(np.mean(dy)),
-                        "yaw_max": float(np.max(dy)),
-                        "turn_mean": float(np.mean(dyaw)),
-                        "turn_max": float(np.max(dyaw)),
-                    }
-                )
-        finally:
-            backend.close()
-    lines = [
-        "| pair | sequences | position diff mean [m] | max [m] | yaw diff mean [rad] | max [rad] "
-        "| total turn diff mean [rad] | max [rad] |",
-        "|---|---|---|---|---|---|---|---|",
-    ]
-    for r in sorted(rows, key=lambda r: r["sequences"] != "full"):
-        lines.append(
-            f"| {r['pair']} | {r['sequences']} | {r['pos_mean']:.3f} | {r['pos_max']:.3f} | "
-            f"{r['yaw_mean']:.3f} | {r['yaw_max']:.3f} | {r['turn_mean']:.3f} | {r['turn_max']:.3f} |"
-        )
-    falls = [
-        f"{s.name} ({ref[s.name]['steps']}/{len(s.actions)})"
-        for s in sequences
-        if ref[s.name]["fell"] or ref[s.name]["sim_error"]
-    ]
-    lines += ["", f"{backend3d} fell in: {', '.join(falls) if falls else 'none'}"]
-    return rows, "\n".join(lines)
-
-
-# -- command ------------------------------------------------------------------------------------
-USAGE = (
-    "usage: footsim-calibrate backend=mujoco [n_steps=800] [seed=0] [scale=1.0] [repeat=0.9] "
-    "[features=dx,dy,dtheta] out=FILE.json\n"
-    "       footsim-calibrate compare=FILE.json [backend=mujoco] [out=FILE.md]"
-)
-
-
-def main(argv: list[str] | None = None) -> None:
-    from footsim.backends.base import require_known_backends
-    from footsim.rl.common import write_json
-    from footsim.utils import atomic_write_text, parse_kv_args
-
-    args = parse_kv_args(
-        sys.argv[1:] if argv is None else argv,
-        {
-            "backend": "mujoco",
-            "n_steps": "800",
-            "seed": "0",
-            "scale": "1.0",
-            "repeat": "0.9",
-            "features": ",".join(DEFAULT_FEATURES),
-            "out": "",
-            "compare": "",
-        },
-        "footsim-calibrate",
-    )
-    require_known_backends([args["backend"]], "footsim-calibrate")
-    if args["compare"]:
-        _, table = consistency(args["compare"], args["backend"], int(args["seed"]))
-        print(table)
-        if args["out"]:
-            atomic_write_text(args["out"], table + "\n")
-        return
-    if not args["out"]:
-        raise SystemExit(f"footsim-calibrate: out=FILE.json is required\n{USAGE}")
-    try:
-        n_steps, seed = int(args["n_steps"]), int(args["seed"])
-        scale, repeat = float(args["scale"]), float(args["repeat"])
-    except ValueError as err:
-        raise SystemExit(f"footsim-calibrate: bad number ({err})\n{USAGE}") from None
-    if n_steps <= 0 or not 0 < scale <= 1 or not 0 <= repeat < 1:
-        raise SystemExit("footsim-calibrate: need n_steps > 0, 0 < scale <= 1, 0 <= repeat < 1")
-    if args["backend"] == "pymunk":
-        raise SystemExit("footsim-calibrate: calibrate against a 3D backend (mujoco, dm_control, pybullet)")
-    from footsim.walkcheck import make_backend
-
-    backend = make_backend(args["backend"])
-    try:
-        data = collect(backend, n_steps, seed, scale, repeat)
-    finally:
-        backend.close()
-    names = [f for f in args["features"].split(",") if f]
-    model = fit(
-        data,
-        meta={"backend": args["backend"], "n_steps": n_steps, "seed": seed, "scale": scale, "repeat": repeat},
-        names=names,
-    )
-    write_json(args["out"], model)
-    print(f"{model['n_samples']} double steps, {model['n_falls']} falls on {args['backend']}")
-    for k, name in enumerate(OUTPUTS):
-        terms = " ".join(f"{c:+.3f}·{f}" for c, f in zip(model["coef"][k], names))
-        print(
-            f"  {name} = {terms} {model['intercept'][k]:+.4f}   σ={model['residual_std'][k]:.4f}  "
-            f"R²={model['r2'][k]:.3f}  (uncorrected 2D RMSE {model['uncorrected_rmse'][k]:.4f})"
-        )
-    print(f"execution model written to {args['out']}")

@@ -23,11 +23,16 @@ import traceback
 from pathlib import Path
 from typing import Any
 
+from hydra.core.utils import JobStatus
 from hydra.experimental.callback import Callback
+from hydra.types import RunMode
+from omegaconf import OmegaConf
+
+from footsim.rl.common import write_json
+from footsim.utils import atomic_write_text
 
 FAILED_FILE = "FAILED.json"
 SUMMARY_FILE = Path("eval") / "summary.json"
-USAGE = "usage: footsim-sweep-summary dir=MULTIRUN_DIR [out=PREFIX]"
 # eval/summary.json keys shown first, in this order; other scalar keys follow alphabetically
 METRIC_ORDER = (
     "episodes",
@@ -48,8 +53,6 @@ class JobStatusCallback(Callback):
     """Writes ``FAILED.json`` into a job's run dir when its task function raised."""
 
     def on_job_end(self, config, job_return, **kwargs: Any) -> None:
-        from hydra.core.utils import JobStatus
-
         try:
             out_dir = Path(str(job_return.hydra_cfg.hydra.runtime.output_dir))
         except Exception:  # no hydra config: nothing sensible to write
@@ -65,7 +68,6 @@ class JobStatusCallback(Callback):
             "overrides": list(job_return.overrides or []),
             "job_num": _job_num(job_return),
         }
-        from footsim.rl.common import write_json
 
         write_json(marker, record)
         if _multirun(job_return):
@@ -78,8 +80,6 @@ class JobStatusCallback(Callback):
 
 
 def _multirun(job_return) -> bool:
-    from hydra.types import RunMode
-
     try:
         return job_return.hydra_cfg.hydra.mode == RunMode.MULTIRUN
     except Exception:
@@ -109,8 +109,6 @@ def find_jobs(sweep_dir: Path) -> list[Path]:
 
 
 def _read_overrides(job: Path) -> dict[str, str]:
-    from omegaconf import OmegaConf
-
     overrides: dict[str, str] = {}
     for item in OmegaConf.to_container(OmegaConf.load(job / ".hydra" / "overrides.yaml")) or []:
         key, sep, value = str(item).partition("=")
@@ -215,8 +213,6 @@ def to_markdown(rows: list[dict], title: str = "") -> str:
 
 
 def write_summary(sweep_dir: str | Path, out_prefix: str | Path | None = None) -> tuple[Path, Path, list[dict]]:
-    from footsim.utils import atomic_write_text
-
     sweep_dir = Path(sweep_dir)
     if not sweep_dir.is_dir():
         raise FileNotFoundError(f"dir: {sweep_dir} is not a directory")
@@ -228,41 +224,3 @@ def write_summary(sweep_dir: str | Path, out_prefix: str | Path | None = None) -
     atomic_write_text(csv_path, to_csv(rows))
     atomic_write_text(md_path, to_markdown(rows, title=str(sweep_dir)))
     return csv_path, md_path, rows
-
-
-def parse_args(argv: list[str]) -> dict[str, str]:
-    keys = {"dir": "the multirun directory", "out": "output prefix (writes PREFIX.csv and PREFIX.md)"}
-    args: dict[str, str] = {}
-    for token in argv:
-        key, sep, value = token.partition("=")
-        if not sep or key not in keys or not value:
-            raise ValueError(f"expected one of {', '.join(k + '=' for k in keys)} with a value, got {token!r}")
-        if key in args:
-            raise ValueError(f"{key}= given twice")
-        args[key] = value
-    if "dir" not in args:
-        raise ValueError("missing dir= (the multirun directory, e.g. multirun/2025-01-01/12-00-00)")
-    return args
-
-
-def main(argv: list[str] | None = None) -> int:
-    argv = sys.argv[1:] if argv is None else argv
-    if any(a in ("-h", "--help") for a in argv):
-        print(USAGE + "\n\n" + __doc__)
-        return 0
-    try:
-        args = parse_args(argv)
-        csv_path, md_path, rows = write_summary(args["dir"], args.get("out"))
-    except (ValueError, FileNotFoundError) as exc:
-        print(f"footsim-sweep-summary: {exc}\n{USAGE}", file=sys.stderr)
-        return 2
-    print(md_path.read_text(), end="")
-    print(f"\nwrote {csv_path} and {md_path}")
-    failed = [r for r in rows if r["status"] == "failed"]
-    for row in failed:
-        print(f"job {row['job']} failed: {row['error']}", file=sys.stderr)
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

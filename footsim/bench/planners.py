@@ -1,4 +1,4 @@
-"""Planning time of the baselines on obstacle scenes (for footsim-bench / docs/BENCHMARKS.md).
+"""Planning time of the baselines on obstacle scenes (``footsim-bench what=planners``, docs/BENCHMARKS.md).
 
 ``bench_planners(n_scenes)`` runs both baselines (no noise, 2D backend) on ``n_scenes`` obstacle
 scenes of the evaluation distribution and times every plan they make while navigating: the
@@ -11,6 +11,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
+from footsim.env import FootstepEnv
+from footsim.planners import make_controller
+from footsim.tasks.scenes import sample_scenes
 
 
 def _row(name: str, times_s, extra: dict | None = None) -> dict:
@@ -34,10 +38,6 @@ def bench_planners(
     velocity: dict | None = None,
     footstep: dict | None = None,
 ) -> list[dict]:
-    from footsim.env import FootstepEnv
-    from footsim.planners import make_controller
-    from footsim.tasks.scenes import sample_scenes
-
     env = FootstepEnv(backend=backend, task="nav_obstacles")
     scenes = sample_scenes(env.sampler, n_scenes, seed)
     rows = []
@@ -72,13 +72,3 @@ def bench_planners(
     finally:
         env.close()
     return rows
-
-
-if __name__ == "__main__":
-    import sys
-
-    from footsim.bench import _machine, _table
-
-    n = int(sys.argv[1]) if len(sys.argv) > 1 else 50
-    print(f"machine: {_machine()}\n")
-    print(_table(bench_planners(n)))
