@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Callable
-from typing import Any, TypeVar
+from typing import Any, TypeVar, cast
 
 import numba
 from numba import njit
@@ -30,7 +30,7 @@ def compiled(func: F) -> F:
     numba finds no writable cache directory: a read-only install, no writable home directory and
     no ``NUMBA_CACHE_DIR``."""
     try:
-        return njit(cache=True)(func)
+        return cast(F, njit(cache=True)(func))  # a numba Dispatcher: called like func
     except RuntimeError as err:  # numba: "cannot cache function ...: no locator available ..."
         if not _uncached:
             warnings.warn(
@@ -40,7 +40,7 @@ def compiled(func: F) -> F:
                 stacklevel=2,
             )
         _uncached.append(func.__name__)
-        return njit(func)
+        return cast(F, njit(func))
 
 
 def typed_entry(kernel: Callable[..., Any], *example: Any) -> Callable[..., Any]:

@@ -273,7 +273,7 @@ def test_bad_specs_are_rejected():
     with pytest.raises(ValueError, match="unknown joint"):
         RobotSpec("r", base_link="a", links=(link, b), joints=(joint,), walk_ready={"k": 0.0})
     with pytest.raises(ValueError, match="no kinematic model"):
-        RobotSpec("flat").leg_geometry
+        _ = RobotSpec("flat").leg_geometry
     with pytest.raises(ValueError, match="unknown joint"):
         wolfgang().link_transforms({"LToe": 0.1})
     with pytest.raises(ValueError, match="finite"):

@@ -11,6 +11,7 @@ import os
 import platform
 import statistics
 from collections.abc import Callable
+from typing import Any
 
 from footsim.backends.bench3d import bench_backend
 from footsim.bench.env2d import bench_env2d
@@ -32,7 +33,7 @@ def _bench_3d(name: str) -> Callable[..., list[dict]]:
         """Env double steps/s vs raw physics for the same ticks, their ratio, RSS (median of runs)."""
         runs = [bench_backend(name, repeats=20, seed=r) for r in range(repeats)]
         keys = [k for k, v in runs[0].items() if isinstance(v, (int, float)) and not isinstance(v, bool)]
-        row = {"backend": name}
+        row: dict[str, Any] = {"backend": name}
         row.update({k: statistics.median(r[k] for r in runs) for k in keys if k != "repeats"})
         row["fell"] = any(r.get("fell") for r in runs)
         return [row]

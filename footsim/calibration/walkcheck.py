@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from itertools import combinations
+from typing import Any
 
 import numpy as np
 
@@ -159,7 +160,7 @@ def execution_model_consistency(model_path: str, backend3d: str = "mujoco", seed
         ref_backend.close()
     walk = fconf.build_walk(fconf.load_preset("walk", fconf.walk_preset_for("pymunk")))
     robot = fconf.build_robot("wolfgang")
-    variants = {
+    variants: dict[str, dict[str, Any]] = {
         "pymunk (geometry)": {},
         "pymunk + model (mean)": {"execution_model": model_path, "execution_noise": False},
         "pymunk + model (with noise)": {"execution_model": model_path},

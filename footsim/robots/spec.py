@@ -43,7 +43,7 @@ def _vec3(value, what: str) -> Vec3:
     arr = np.asarray(value, dtype=float)
     if arr.shape != (3,) or not np.all(np.isfinite(arr)):
         raise ValueError(f"{what} must be three finite numbers, got {value!r}")
-    return tuple(float(v) for v in arr)
+    return (float(arr[0]), float(arr[1]), float(arr[2]))
 
 
 def _positive(value: float, what: str) -> float:

@@ -8,6 +8,7 @@ The command's own keys and defaults are in ``conf/transfer_matrix.yaml``; every 
 from __future__ import annotations
 
 import sys
+from typing import Any, cast
 
 from omegaconf import OmegaConf
 
@@ -31,8 +32,8 @@ def _defaults():
 
 def parse_args(argv: list[str]) -> tuple[dict, list[str]]:
     """This command's options (conf/transfer_matrix.yaml + overrides) and the footsim-train overrides."""
-    cfg = OmegaConf.to_container(_defaults())
-    train_overrides = []
+    cfg = cast("dict[str, Any]", OmegaConf.to_container(_defaults()))  # the YAML file is a mapping of str keys
+    train_overrides: list[str] = []
     for arg in argv:
         if arg in ("-h", "--help"):
             raise SystemExit(USAGE)

@@ -8,11 +8,16 @@ footprints where each foot was put down.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from footsim.walk.engine import QuinticWalk, WalkTrajectory
 from footsim.walk.footsteps import DoubleStep, FootstepGeometry, StepLimits
 from footsim.walk.params import WalkParams
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
 _COLOURS = {"left": "tab:blue", "right": "tab:red", "trunk": "black"}
 
