@@ -33,7 +33,8 @@ def conf_dir() -> Path:
         if (candidate / "config.yaml").is_file():
             return candidate
     raise FileNotFoundError(
-        f"footsim's conf/ directory was not found (looked in {_PACKAGE_DIR / 'conf'} and {_PACKAGE_DIR.parent / 'conf'})"
+        "footsim's conf/ directory was not found "
+        f"(looked in {_PACKAGE_DIR / 'conf'} and {_PACKAGE_DIR.parent / 'conf'})"
     )
 
 
@@ -118,10 +119,12 @@ def build_task(task_cfg: Mapping):
         "n_rays",
         "ray_range",
         "ray_scale",
-        "reward_weights",
+        "reward",
+        "terminations",
+        "fall_threshold",
+        "collision_ends_episode",
         "observe_imu",
         "imu_scale",
-        "stability_scale",
         "path_hint",
         "path_hint_lookahead",
         "path_hint_clearance",
@@ -130,21 +133,28 @@ def build_task(task_cfg: Mapping):
     unknown = sorted(set(cfg) - known)
     if unknown:
         raise ValueError(
-            f"task: unknown key(s) {unknown}; valid: {sorted(known | {'name', 'obstacles', 'scenes', 'success_angle_deg'})}"
+            f"task: unknown key(s) {unknown}; "
+            f"valid: {sorted(known | {'name', 'obstacles', 'scenes', 'success_angle_deg'})}"
         )
     for key in ("observe_imu", "path_hint"):
         if key in cfg and not isinstance(cfg[key], bool):
             raise ValueError(f"task.{key} must be true or false, got {cfg[key]!r}")
-    for key in known - {"reward_weights", "max_steps", "n_rays", "observe_imu", "path_hint"}:
+    for key in known - {
+        "reward",
+        "terminations",
+        "collision_ends_episode",
+        "max_steps",
+        "n_rays",
+        "observe_imu",
+        "path_hint",
+    }:
         if key in cfg:
             cfg[key] = _number(cfg, key, "task")
     for key in ("max_steps", "n_rays"):
         if key in cfg:
             cfg[key] = int(_number(cfg, key, "task"))
-    if "reward_weights" in cfg:
-        cfg["reward_weights"] = {
-            k: _number(cfg["reward_weights"], k, "task.reward_weights") for k in cfg["reward_weights"]
-        }
+    if "terminations" in cfg and cfg["terminations"] is None:
+        cfg["terminations"] = {}
     sampler_fields = set(SceneSampler.__dataclass_fields__) - {"obstacles"}
     unknown = sorted(set(scenes) - sampler_fields)
     if unknown:
@@ -184,14 +194,32 @@ def build_robot(robot_cfg: Mapping | str):
     return get_robot(robot_cfg) if isinstance(robot_cfg, str) else robot_from_config(dict(robot_cfg))
 
 
-def build_backend(backend_cfg: Mapping, robot, walk):
+def backend_kind(backend_cfg: Mapping) -> str:
+    """ "2d" or "3d": the kind of the backend a config names (imports its module, not its simulator's state)."""
+    from footsim.backends.base import backend_class
+
+    if backend_cfg.get("name") is None:
+        raise ValueError("backend: config has no 'name'")
+    return backend_class(backend_cfg["name"]).kind
+
+
+def build_backend(backend_cfg: Mapping, robot, walk, task=None):
+    """The backend a config names; a 3D backend also gets the task's ``fall_threshold`` and
+    ``collision_ends_episode`` (``task``: a resolved ``NavTaskConfig``; its driver stops simulating
+    a double step early when the task will end the episode)."""
     from footsim.backends.base import backend_class
 
     cfg = dict(backend_cfg)
     name = cfg.pop("name", None)
     if name is None:
         raise ValueError("backend: config has no 'name'")
-    return backend_class(name)(robot=robot, walk=walk, **cfg)
+    cls = backend_class(name)
+    for key in ("fall_threshold", "collision_ends_episode"):
+        if key in cfg:
+            raise ValueError(f"backend.{key} is a task rule: set task.{key} instead")
+    if task is not None and cls.kind == "3d":
+        cfg.update(fall_threshold=task.fall_threshold, collision_ends_episode=bool(task.collision_ends_episode))
+    return cls(robot=robot, walk=walk, **cfg)
 
 
 def build_randomizer(randomization_cfg: Mapping | None, backend):

@@ -145,7 +145,9 @@ def main(argv: list[str] | None = None) -> None:
     try:
         n, seed = int(args["n"]), int(args["seed"])
     except ValueError:
-        raise SystemExit(f"footsim-scenes: n and seed must be integers, got n={args['n']!r} seed={args['seed']!r}")
+        raise SystemExit(
+            f"footsim-scenes: n and seed must be integers, got n={args['n']!r} seed={args['seed']!r}"
+        ) from None
     if n <= 0:
         raise SystemExit(f"footsim-scenes: n must be > 0, got {n}")
     flag = str(args["obstacles"]).lower()
