@@ -277,7 +277,7 @@ def consistency(model_path: str, backend3d: str = "mujoco", seed: int = 0) -> tu
         ref = {s.name: run_sequence(ref_backend, s, seed=seed) for s in sequences}
     finally:
         ref_backend.close()
-    walk = fconf.build_walk(fconf.load_preset("walk", fconf.walk_preset_for("pymunk")))
+    walk = fconf.build_walk(fconf.load_preset("walk", backend="pymunk"))
     robot = fconf.build_robot("wolfgang")
     variants = {
         "pymunk (geometry)": {},

@@ -63,7 +63,11 @@ class FootstepEnv(gym.Env):
         noise: noise preset (``none``, ``localization``, …) or mapping (``sigma_x`` …).
         randomization: domain-randomization preset (``none``, ``default``, ``strong``) or a
             mapping with ``terms_2d`` / ``terms_3d`` (see ``footsim.randomization``).
-        robot, walk: presets or mappings of the ``robot`` and ``walk`` groups.
+        robot, walk: presets or mappings of the ``robot`` and ``walk`` groups (``walk`` default:
+            the backend's, ``conf/walk/<backend>.yaml``).
+        A group left ``None`` takes its default from ``conf/env.yaml``; a mapping is merged over a
+        preset (its ``name`` for backend, task and robot, else the group's default), and a key or
+        type the group's schema (``footsim.schema``) does not allow fails naming the key.
         scenes: optional list of ``Scene`` to cycle through instead of sampling (evaluation);
             a scene can also be passed per episode as ``reset(options={"scene": scene})``.
 
@@ -77,10 +81,10 @@ class FootstepEnv(gym.Env):
         backend: str | Mapping = "pymunk",
         task: str | Mapping | None = None,
         obstacles: bool | None = None,
-        noise: str | Mapping = "none",
-        robot: str | Mapping = "wolfgang",
+        noise: str | Mapping | None = None,
+        robot: str | Mapping | None = None,
         walk: str | Mapping | None = None,
-        randomization: str | Mapping = "none",
+        randomization: str | Mapping | None = None,
         scenes: list[Scene] | None = None,
         render_mode: str | None = None,
     ):
@@ -88,17 +92,7 @@ class FootstepEnv(gym.Env):
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         if task is None:
             task = "nav_obstacles" if obstacles else "nav"
-        backend_cfg = fconf.load_preset("backend", {"name": backend} if isinstance(backend, str) else backend)
-        if walk is None:  # the walk parameters tuned for this backend
-            walk = fconf.walk_preset_for(backend_cfg["name"])
-        self.config = {
-            "backend": backend_cfg,
-            "task": fconf.load_preset("task", task),
-            "noise": fconf.load_preset("noise", noise),
-            "robot": fconf.load_preset("robot", robot),
-            "walk": fconf.load_preset("walk", walk),
-            "randomization": fconf.load_preset("randomization", randomization),
-        }
+        self.config = fconf.env_config(backend, task, noise, robot, walk, randomization)
         if obstacles is not None and bool(obstacles) != bool(self.config["task"].get("obstacles")):
             raise ValueError(f"obstacles={obstacles} contradicts task {self.config['task'].get('name')!r}")
         self.sampler, task_config = fconf.build_task(self.config["task"])

@@ -93,7 +93,7 @@ def _error_ratio(executed: dict, commanded: dict, measure: str) -> float:
 def make_backend(name: str):
     from footsim import config as fconf
 
-    walk = fconf.build_walk(fconf.load_preset("walk", fconf.walk_preset_for(name)))
+    walk = fconf.build_walk(fconf.load_preset("walk", backend=name))
     robot = fconf.build_robot("wolfgang")
     return fconf.build_backend(fconf.load_preset("backend", {"name": name}), robot, walk)
 

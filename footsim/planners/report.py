@@ -203,12 +203,10 @@ def example_paths(
 
 
 def _conf(name: str) -> dict:
-    """A controller's preset from conf/controller/<name>.yaml."""
-    from omegaconf import OmegaConf
+    """A controller's preset, composed from conf/controller/<name>.yaml."""
+    from footsim.config import load_preset
 
-    from footsim.config import conf_dir
-
-    return OmegaConf.to_container(OmegaConf.load(conf_dir() / "controller" / f"{name}.yaml"), resolve=True)
+    return load_preset("controller", name)
 
 
 def main(argv: list[str] | None = None) -> None:

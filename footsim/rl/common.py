@@ -39,10 +39,13 @@ def save_config(run_dir: Path, cfg: DictConfig) -> None:
 
 
 def load_run_config(run_dir: str | os.PathLike) -> DictConfig:
+    """A run's resolved config, in today's keys (``footsim.config.upgrade_run_config``)."""
+    from footsim.config import upgrade_run_config
+
     path = Path(run_dir) / CONFIG_FILE
     if not path.is_file():
         raise FileNotFoundError(f"{run_dir} is not a footsim run directory: {CONFIG_FILE} is missing")
-    return OmegaConf.load(path)
+    return upgrade_run_config(OmegaConf.load(path))
 
 
 def validate_train_config(cfg: DictConfig) -> None:
