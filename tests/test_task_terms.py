@@ -11,6 +11,7 @@ from footsim.env import FootstepEnv
 from footsim.geometry import Pose2D
 from footsim.scene import Obstacle, Scene
 from footsim.tasks.nav import NavTask, NavTaskConfig
+from footsim.tasks.terms import reward_term
 
 
 def lateral_offset(step, scale: float) -> float:
@@ -21,6 +22,12 @@ def lateral_offset(step, scale: float) -> float:
 def far_away(step, radius: float) -> bool:
     """A user's termination term: the robot left a disc around the start."""
     return math.hypot(step.pose.x, step.pose.y) > radius
+
+
+@reward_term("upright_bonus_for_tests", needs=("tilt",))
+def upright_bonus(step) -> float:
+    """A user's term that reads the backend's tilt (declared with ``needs``)."""
+    return 1.0 - step.max_tilt
 
 
 def _task(kind: str = "2d", **options) -> NavTask:
@@ -92,6 +99,15 @@ def test_a_user_reward_term_is_one_function_and_one_config_entry():
     finally:
         env.close()
         plain.close()
+
+
+def test_a_user_term_needing_the_tilt_makes_the_task_ask_for_it():
+    config = NavTaskConfig(reward={"upright": {"weight": 0.5, "func": f"{__name__}:upright_bonus"}})
+    assert config.uses_tilt
+    task = NavTask(config, "3d")
+    task.reset(Scene(Pose2D(2.0, 0.0, 0.0)), Pose2D())
+    reward, terms, _, _ = task.step(_result(max_tilt=0.25, tilt=(0.1, -0.25)), [0.0] * 6)
+    assert terms == {"upright": 0.75} and reward == 0.375 and task.tilt == (0.1, -0.25, 0.25)
 
 
 def test_a_user_termination_term_names_its_outcome():

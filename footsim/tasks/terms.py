@@ -179,7 +179,9 @@ def reward_table(table: Mapping[str, Any], where: str = "task.reward") -> tuple[
         ):
             raise ValueError(f"{where}.{name}.weight must be a number >= 0, got {weight!r}")
         if entry.get("func") is not None:
-            func, needs = import_function(entry["func"], f"{where}.{name}"), frozenset()
+            func = import_function(entry["func"], f"{where}.{name}")
+            # a function its module registered with @reward_term(needs=...) keeps its requirements
+            needs = next((spec.needs for spec in REWARD_TERMS.values() if spec.func is func), frozenset())
         elif name in REWARD_TERMS:
             spec = REWARD_TERMS[name]
             func, needs = spec.func, spec.needs
