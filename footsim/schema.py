@@ -13,7 +13,7 @@ Schemas (ConfigStore ``group/name``): ``schema/backend/{pymunk,mujoco,pybullet}`
 serves both MuJoCo-engine backends, mujoco and dm_control), ``schema/robot``, ``schema/walk``,
 ``schema/task``, ``schema/noise``, ``schema/randomization``, ``schema/agent``,
 ``schema/controller/{policy,velocity,footstep}``, ``schema/train`` and ``schema/eval`` (the
-top-level sections of ``footsim-train``).
+top-level sections of ``footsim-train``), ``schema/eval_app`` (``footsim-eval``'s config).
 """
 
 from __future__ import annotations
@@ -224,6 +224,27 @@ class EvalSection:
 
 
 @dataclass
+class EvalAppConfig:
+    """``footsim-eval``'s own keys; its groups (controller, and the backend, task, noise and
+    randomization that replace a run's) are composed into the ``Any`` fields, None when unset."""
+
+    controller: Any = None
+    backend: Any = None
+    task: Any = None
+    noise: Any = None
+    randomization: Any = None
+    run: Optional[str] = MISSING
+    scenes: Optional[str] = MISSING
+    n_scenes: int = MISSING
+    scenes_seed: int = MISSING
+    deterministic: bool = MISSING
+    seed: int = MISSING
+    plot: bool = MISSING
+    video: bool = MISSING
+    video_episodes: int = MISSING
+
+
+@dataclass
 class PolicyControllerConfig:
     name: str = MISSING
 
@@ -269,6 +290,7 @@ def _controller_derived() -> dict[str, type]:
 
     return {
         "controller/policy": PolicyControllerConfig,
+        "eval_app": EvalAppConfig,
         "controller/velocity": derived_schema(
             "VelocityControllerConfig", VelocityParams, named=True, doc="The velocity baseline (VelocityParams)."
         ),
