@@ -134,25 +134,30 @@ def merge_checked(base: DictConfig, values: Mapping, where: str) -> DictConfig:
         raise ValueError(f"{where}: {str(err).splitlines()[0]}") from None
 
 
-def preset_config(group: str, spec: str | Mapping | None = None, *, backend: str | None = None) -> DictConfig:
-    """A group's config, composed: a preset name, or a mapping merged over a base preset (its
-    ``name`` for backend, task and robot; otherwise the group's default, for ``walk`` the one of
-    ``backend``).  ``None``: the default preset."""
-    if spec is None or isinstance(spec, str):
-        return _preset_node(group, spec, backend)
+def _base_preset(group: str, spec: str | Mapping | None) -> str | None:
+    """The preset a group's spec starts from: a name is that preset; a mapping is merged over its
+    ``name`` (backend, task, robot: when such a preset exists; a backend mapping must name one) or
+    else over the group's default (None)."""
+    if spec is None:
+        return None
+    if isinstance(spec, str):
+        return _check_preset(group, spec)
     if not isinstance(spec, (Mapping, DictConfig)):
         raise TypeError(f"{group} must be a preset name or a mapping, got {type(spec).__name__}")
-    values = to_plain(spec)
-    name = values.get("name") if group in _NAMED_BASE else None
+    name = spec.get("name") if group in _NAMED_BASE else None
     if group == "backend":
-        _refuse_task_rules(values)
+        _refuse_task_rules(spec)
         if name is None:
             raise ValueError("backend: config has no 'name'")
-    if name is not None and (group == "backend" or name in available(group)):
-        base = _preset_node(group, name)
-    else:
-        base = _preset_node(group, None, backend)
-    return merge_checked(base, values, group)
+        return _check_preset(group, name)
+    return name if name in available(group) else None
+
+
+def preset_config(group: str, spec: str | Mapping | None = None, *, backend: str | None = None) -> DictConfig:
+    """A group's config, composed: a preset name, or a mapping merged over its base preset
+    (:func:`_base_preset`; the group's default, for ``walk`` the one of ``backend``)."""
+    base = _preset_node(group, _base_preset(group, spec), backend)
+    return base if spec is None or isinstance(spec, str) else merge_checked(base, to_plain(spec), group)
 
 
 #: Episode rules that belong to the task config, never to a backend's.
@@ -211,13 +216,32 @@ def env_config(
     walk: str | Mapping | None = None,
     randomization: str | Mapping | None = None,
 ) -> dict[str, dict]:
-    """The env's groups as plain dicts; ``None`` = the default (``walk``: the chosen backend's)."""
-    backend_cfg = load_preset("backend", {"name": backend} if isinstance(backend, str) else backend)
-    groups = {"task": task, "noise": noise, "robot": robot, "randomization": randomization}
-    out = {"backend": backend_cfg}
-    out.update({group: load_preset(group, spec) for group, spec in groups.items()})
-    out["walk"] = load_preset("walk", walk, backend=backend_cfg["name"])
-    return {group: out[group] for group in ENV_GROUPS}
+    """The env's groups as plain dicts, composed from ``conf/env.yaml`` in one go; ``None`` = the
+    group's default there (``walk``: the chosen backend's); mappings merge over their base preset."""
+    specs = {
+        "backend": {"name": backend} if isinstance(backend, str) else backend,
+        "task": task,
+        "noise": noise,
+        "robot": robot,
+        "walk": walk,
+        "randomization": randomization,
+    }
+    overrides = []
+    for group, spec in specs.items():
+        name = _base_preset(group, spec)
+        if name is not None:
+            overrides.append(f"{group}={name}")
+    composed = compose("env", overrides)
+    out = {}
+    for group in ENV_GROUPS:
+        spec = specs[group]
+        node = (
+            composed[group]
+            if spec is None or isinstance(spec, str)
+            else merge_checked(composed[group], to_plain(spec), group)
+        )
+        out[group] = plain_config(node)
+    return out
 
 
 def plain_config(cfg: Any) -> Any:
