@@ -1,7 +1,8 @@
 """``FootstepEnv``: the gymnasium environment tying task, noise and backend together.
 
 One env step is one double step: action (6-D, [-1, 1]) → ``DoubleStep`` → backend →
-``StepResult`` (truth) → noise → observation and reward.
+``StepResult`` (truth) → task (reward, termination) → noise (believed pose) → task (observation).
+The env is glue: the task (:class:`footsim.tasks.nav.NavTask`) decides what the truth means.
 """
 
 from __future__ import annotations
@@ -18,13 +19,10 @@ from footsim.backends.base import RenderOverlay
 from footsim.geometry import Pose2D
 from footsim.scene import Scene
 from footsim.tasks import nav
+from footsim.tasks.nav import OUTCOMES
 from footsim.walk.footsteps import DoubleStep, action_values
 
-OUTCOMES = ("running", "success", "timeout", "fall", "collision", "sim_error")
-_ZERO_TILT = (0.0, 0.0, 0.0)
-_NO_HINT = (0.0, 1.0)
-_ZERO_ACTION = [0.0] * 6  # never mutated: actions are fresh lists
-isfinite = math.isfinite
+__all__ = ["OUTCOMES", "DeferredGenerator", "FootstepEnv", "make_env"]
 
 
 class DeferredGenerator:
@@ -65,7 +63,11 @@ class FootstepEnv(gym.Env):
         noise: noise preset (``none``, ``localization``, …) or mapping (``sigma_x`` …).
         randomization: domain-randomization preset (``none``, ``default``, ``strong``) or a
             mapping with ``terms_2d`` / ``terms_3d`` (see ``footsim.randomization``).
-        robot, walk: presets or mappings of the ``robot`` and ``walk`` groups.
+        robot, walk: presets or mappings of the ``robot`` and ``walk`` groups (``walk`` default:
+            the backend's, ``conf/walk/<backend>.yaml``).
+        A group left ``None`` takes its default from ``conf/env.yaml``; a mapping is merged over a
+        preset (its ``name`` for backend, task and robot, else the group's default), and a key or
+        type the group's schema (``footsim.schema``) does not allow fails naming the key.
         scenes: optional list of ``Scene`` to cycle through instead of sampling (evaluation);
             a scene can also be passed per episode as ``reset(options={"scene": scene})``.
 
@@ -79,10 +81,10 @@ class FootstepEnv(gym.Env):
         backend: str | Mapping = "pymunk",
         task: str | Mapping | None = None,
         obstacles: bool | None = None,
-        noise: str | Mapping = "none",
-        robot: str | Mapping = "wolfgang",
+        noise: str | Mapping | None = None,
+        robot: str | Mapping | None = None,
         walk: str | Mapping | None = None,
-        randomization: str | Mapping = "none",
+        randomization: str | Mapping | None = None,
         scenes: list[Scene] | None = None,
         render_mode: str | None = None,
     ):
@@ -90,24 +92,15 @@ class FootstepEnv(gym.Env):
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         if task is None:
             task = "nav_obstacles" if obstacles else "nav"
-        backend_cfg = fconf.load_preset("backend", {"name": backend} if isinstance(backend, str) else backend)
-        if walk is None:  # the walk parameters tuned for this backend
-            walk = fconf.walk_preset_for(backend_cfg["name"])
-        self.config = {
-            "backend": backend_cfg,
-            "task": fconf.load_preset("task", task),
-            "noise": fconf.load_preset("noise", noise),
-            "robot": fconf.load_preset("robot", robot),
-            "walk": fconf.load_preset("walk", walk),
-            "randomization": fconf.load_preset("randomization", randomization),
-        }
+        self.config = fconf.env_config(backend, task, noise, robot, walk, randomization)
         if obstacles is not None and bool(obstacles) != bool(self.config["task"].get("obstacles")):
             raise ValueError(f"obstacles={obstacles} contradicts task {self.config['task'].get('name')!r}")
-        self.sampler, self.task = fconf.build_task(self.config["task"])
+        self.sampler, task_config = fconf.build_task(self.config["task"])
         self.noise = fconf.build_noise(self.config["noise"])
         self.robot = fconf.build_robot(self.config["robot"])
         self.walk = fconf.build_walk(self.config["walk"])
-        self.backend = fconf.build_backend(self.config["backend"], self.robot, self.walk)
+        self.task = nav.NavTask(task_config, fconf.backend_kind(self.config["backend"]))
+        self.backend = fconf.build_backend(self.config["backend"], self.robot, self.walk, self.task.config)
         try:
             self.randomizer = fconf.build_randomizer(self.config["randomization"], self.backend)
         except Exception:
@@ -122,15 +115,8 @@ class FootstepEnv(gym.Env):
         self.observation_space = gym.spaces.Box(-1.0, 1.0, shape=(self.task.observation_size,), dtype=np.float32)
 
         self.scene: Scene | None = None
-        self._prev_actions = (_ZERO_ACTION, _ZERO_ACTION)  # a(t-1), a(t-2) as lists of 6 floats
-        self._tilt = _ZERO_TILT  # (roll, pitch, max tilt) of the last step, for task.observe_imu
-        self._path_hint: nav.PathHint | None = None  # task.path_hint: planned at reset
-        self._arrays: tuple[np.ndarray, np.ndarray] | None = None  # nav.scene_arrays(scene), built at reset
-        self._steps = 0
         self._time = 0.0
-        self._pose = Pose2D()
         self._believed = Pose2D()
-        self._outcome = "running"
 
     # -- gymnasium API --------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -161,20 +147,12 @@ class FootstepEnv(gym.Env):
         if self.randomizer.active:
             self._randomization = self.randomizer.episode(self._random_rng)
             self.backend.apply_randomization(self._randomization)
-        self._pose = self.backend.reset(self.scene, backend_rng)
-        self._prev_actions = (_ZERO_ACTION, _ZERO_ACTION)
-        self._tilt = _ZERO_TILT  # standing after reset
-        self._steps = 0
+        pose = self.backend.reset(self.scene, backend_rng)
+        self.task.reset(self.scene, pose)
         self._time = 0.0
-        self._outcome = "running"
         self.noise.reset(self._noise_rng)  # per-episode bias, empty delay buffer
-        self._believed = self.noise.believe(self._pose, self._noise_rng)
-        self._path_hint = nav.PathHint(self.scene, self._pose, self.task) if self.task.path_hint else None
-        self._arrays = nav.scene_arrays(self.scene)  # the obstacles for the compiled kernels, once per episode
-        obs = nav.observation(
-            self._believed, self.scene, self._prev_actions, self.task, None, self._tilt, self._hint(), self._arrays
-        )
-        return obs, self._info({})
+        self._believed = self.noise.believe(pose, self._noise_rng)
+        return self.task.observe(self._believed), self._info({})
 
     def step(self, action):
         if self.scene is None:
@@ -187,68 +165,26 @@ class FootstepEnv(gym.Env):
                 self._randomization.update(changed)
                 self.backend.apply_randomization(changed)
         result = self.backend.execute(double_step)
-        self._steps += 1
         self._time += result.duration_s
-
-        terminated = False
-        pose = result.pose
-        if result.sim_error is None and isfinite(pose[0]) and isfinite(pose[1]) and isfinite(pose[2]):
-            self._pose = pose
-        else:  # keep the last valid pose: the learner must never see NaN
-            result.sim_error = result.sim_error or "non-finite pose"
-        task, scene = self.task, self.scene
-        features = nav.goal_features(self._pose, scene.goal)
-        max_tilt = None
-        if task.uses_tilt:  # 3D options: IMU in the observation, stability in the reward
-            max_tilt = result.max_tilt
-            self._tilt = (*result.tilt, max_tilt)
-        terms = nav.reward_terms(
-            self._pose, scene, action, self._prev_actions[0], features, max_tilt, task.stability_scale, self._arrays
-        )
-        reward = nav.weighted_reward(terms, task.reward_weights)
-
-        if result.sim_error is not None:
-            self._outcome, terminated, reward = "sim_error", True, 0.0
-        elif result.fell:
-            self._outcome, terminated = "fall", True
-        elif result.collided and self.backend.collision_ends_episode:
-            self._outcome, terminated = "collision", True
-        elif nav.is_success(self._pose, scene.goal, task, features):
-            self._outcome, terminated = "success", True
-            # the rest of the episode at the maximum step reward (task.success_bonus per step; thesis: 1)
-            reward += task.success_bonus * float(task.max_steps - self._steps)
-        truncated = not terminated and self._steps >= task.max_steps
-        if truncated:
-            self._outcome = "timeout"
-
-        self._prev_actions = (action, self._prev_actions[0])
-        self._believed = self.noise.believe(self._pose, self._noise_rng)
-        obs = nav.observation(
-            self._believed,
-            scene,
-            self._prev_actions,
-            task,
-            features if self._believed is self._pose else None,
-            self._tilt,
-            self._hint(),
-            self._arrays,
-        )
-        info = self._info(terms, result)
-        return obs, float(reward), terminated, truncated, info
+        reward, terms, terminated, truncated = self.task.step(result, action)
+        self._believed = self.noise.believe(self.task.pose, self._noise_rng)
+        obs = self.task.observe(self._believed)
+        return obs, reward, terminated, truncated, self._info(terms, result)
 
     def render(self):
         if self.render_mode != "rgb_array":
             return None
         rays = None
-        if self.task.obstacles:
-            dists = nav.ray_distances(self._believed, self.scene.all_obstacles, self.task.n_rays, self.task.ray_range)
-            angles = self._believed.theta + np.arange(self.task.n_rays) * (2 * math.pi / self.task.n_rays)
+        config = self.task.config
+        if config.obstacles:
+            dists = nav.ray_distances(self._believed, self.scene.all_obstacles, config.n_rays, config.ray_range)
+            angles = self._believed.theta + np.arange(config.n_rays) * (2 * math.pi / config.n_rays)
             rays = np.stack([self._believed.x + dists * np.cos(angles), self._believed.y + dists * np.sin(angles)], 1)
         overlay = RenderOverlay(
             goal=self.scene.goal,
             ray_endpoints=rays,
             believed=self._believed,
-            reached=nav.is_success(self._pose, self.scene.goal, self.task),
+            reached=nav.is_success(self.task.pose, self.scene.goal, self.task.config),
         )
         return self.backend.render(overlay)
 
@@ -256,26 +192,23 @@ class FootstepEnv(gym.Env):
         self.backend.close()
 
     # -- helpers --------------------------------------------------------------------------
-    def _hint(self) -> tuple[float, float]:
-        """The global-path hint from the believed pose (``task.path_hint``); a constant otherwise."""
-        return _NO_HINT if self._path_hint is None else self._path_hint.bearing(self._believed)
-
     def _info(self, terms: dict, result=None) -> dict[str, Any]:
+        task = self.task
         executed = None if result is None else result.executed
         # one array for the poses (and the executed action), handed out as views: numpy's
         # per-array cost is a visible share of a 2D step
         values = np.array(
-            (*self._pose, *self._believed)
+            (*task.pose, *self._believed)
             if executed is None
-            else (*self._pose, *self._believed, *executed[0], *executed[1]),
+            else (*task.pose, *self._believed, *executed[0], *executed[1]),
             dtype=float,
         )
         info = {
             "pose": values[:3],
             "pose_estimate": values[3:6],
-            "outcome": self._outcome,
+            "outcome": task.outcome,
             "time_s": self._time,
-            "steps": self._steps,
+            "steps": task.steps,
             "reward_terms": terms,  # a fresh dict every step
         }
         if self.randomizer.active:

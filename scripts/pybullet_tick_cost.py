@@ -34,7 +34,7 @@ VARIANTS = {
 
 
 def standing(overrides: dict, engine: dict):
-    walk = fconf.build_walk(fconf.load_preset("walk", fconf.walk_preset_for("pybullet")))
+    walk = fconf.build_walk(fconf.load_preset("walk", backend="pybullet"))
     backend = fconf.build_backend(
         fconf.load_preset("backend", {"name": "pybullet", **overrides}), fconf.build_robot("wolfgang"), walk
     )

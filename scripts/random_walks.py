@@ -46,7 +46,7 @@ def main(argv: list[str]) -> None:
     name = args["backend"]
     first, _, last = args["seeds"].partition(":")
     seeds = range(int(first), int(last or int(first) + 1))
-    walk = fconf.build_walk(fconf.load_preset("walk", fconf.walk_preset_for(name)))
+    walk = fconf.build_walk(fconf.load_preset("walk", backend=name))
     backend = fconf.build_backend(
         fconf.load_preset("backend", {"name": name, **overrides}), fconf.build_robot("wolfgang"), walk
     )

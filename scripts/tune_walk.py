@@ -134,7 +134,7 @@ def main(argv: list[str]) -> None:
         sequences.append(Sequence("bench pattern", np.tile(PATTERN, (15, 1)), "translation"))
     pymunk = make_backend("pymunk")
     commanded = {seq.name: run_sequence(pymunk, seq) for seq in sequences}
-    base = fconf.load_preset("walk", fconf.walk_preset_for(name))
+    base = fconf.load_preset("walk", backend=name)
     ranges = dict(RANGES)
     if "freq" in args:
         lo, hi = (float(v) for v in args["freq"].split(":"))

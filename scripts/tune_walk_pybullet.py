@@ -50,7 +50,7 @@ def _commanded(sequences) -> dict:
 
 
 def make(name: str, walk_over: dict, backend_over: dict):
-    walk_cfg = fconf.load_preset("walk", fconf.walk_preset_for("pybullet"))
+    walk_cfg = fconf.load_preset("walk", backend="pybullet")
     walk_cfg.update(walk_over)
     robot = fconf.build_robot("wolfgang")
     backend_cfg = fconf.load_preset("backend", {"name": name, **(backend_over if name == "pybullet" else {})})
@@ -107,7 +107,7 @@ def main(argv: list[str]) -> None:
         return
     rng = np.random.default_rng(int(opts.get("seed", 0)))
     scale = opts.get("scale", 0.15)
-    base = fconf.load_preset("walk", fconf.walk_preset_for("pybullet"))
+    base = fconf.load_preset("walk", backend="pybullet")
     base.update(walk_over)
     backend_base = fconf.load_preset("backend", "pybullet")
     base.update({f"backend.{k}": v for k, v in backend_base.items() if f"backend.{k}" in RANGES})

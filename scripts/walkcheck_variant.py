@@ -38,7 +38,7 @@ def main(argv: list[str]) -> None:
             engine[key.removeprefix("engine.")] = yaml.safe_load(value)
         else:
             raise SystemExit(f"unknown key {key!r}; keys: backend, extra, backend.<option>, engine.<bullet parameter>")
-    walk = fconf.build_walk(fconf.load_preset("walk", fconf.walk_preset_for(name)))
+    walk = fconf.build_walk(fconf.load_preset("walk", backend=name))
     backend = fconf.build_backend(
         fconf.load_preset("backend", {"name": name, **overrides}), fconf.build_robot("wolfgang"), walk
     )

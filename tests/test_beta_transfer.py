@@ -83,9 +83,10 @@ def test_init_from_copies_weights_and_records_the_parent(tmp_path, agent):
     cls = BetaActorCriticPolicy if agent == "ppo_beta" else "MlpPolicy"
     from omegaconf import OmegaConf
 
+    from footsim.config import load_preset
     from footsim.rl.common import policy_kwargs
 
-    agent_cfg = OmegaConf.load(f"conf/agent/{agent}.yaml")
+    agent_cfg = OmegaConf.create(load_preset("agent", agent))
     fresh = PPO(cls, FootstepEnv(), policy_kwargs=policy_kwargs(agent_cfg), device="cpu", seed=3)
     record = init_from_run(fresh, parent)
     saved = PPO.load(parent / "model.zip", device="cpu")

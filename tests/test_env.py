@@ -83,7 +83,7 @@ def test_success_adds_the_remaining_steps():
 def test_timeout_after_100_double_steps():
     env = FootstepEnv()
     env.reset(seed=0, options={"scene": Scene(Pose2D(5.0, 5.0, 0.0))})
-    for i in range(100):
+    for _ in range(100):
         obs, r, term, trunc, info = env.step(np.zeros(6))
         assert not term
     assert trunc and info["outcome"] == "timeout" and info["steps"] == 100

@@ -338,9 +338,11 @@ def test_env_steps_match_the_python_reference(kwargs):
     for _ in range(1500):
         before = env.backend.feet
         obs, _, terminated, truncated, info = env.step(rng.uniform(-1, 1, 6))
-        prev = env._prev_actions
-        np.testing.assert_array_equal(obs, _reference_observation(env._believed, env.scene, prev, env.task, env._tilt))
-        assert info["reward_terms"]["obstacle"] == _reference_obstacle_term(env._pose, env.scene)
+        prev, believed = env.task.previous_actions, Pose2D(*info["pose_estimate"])
+        np.testing.assert_array_equal(
+            obs, _reference_observation(believed, env.scene, prev, env.task.config, env.task.tilt)
+        )
+        assert info["reward_terms"]["obstacle"] == _reference_obstacle_term(env.task.pose, env.scene)
         after_first = type(before)(before.left, env.backend.history[-2][1])
         expected = _reference_double_step_collides(
             env.backend, env.scene.circles, before, after_first, env.backend.feet
@@ -384,7 +386,6 @@ def test_double_step_collisions_match_the_python_reference():
     backend = Pymunk2DBackend(
         build_robot(load_preset("robot", "wolfgang")),
         build_walk(load_preset("walk", "pymunk")),
-        collision_ends_episode=False,
     )
     rng = np.random.default_rng(4)
     sampler = SceneSampler(obstacles=True, obstacle_offset_sigma=0.3, obstacle_radius_max=0.4)

@@ -169,7 +169,7 @@ def _walk(name, compiled, overrides=None, randomization=None, steps=4):
     from footsim.scene import Scene
     from footsim.walk.footsteps import DoubleStep
 
-    walk = fconf.build_walk(fconf.load_preset("walk", fconf.walk_preset_for(name)))
+    walk = fconf.build_walk(fconf.load_preset("walk", backend=name))
     backend = fconf.build_backend(
         fconf.load_preset("backend", {"name": name, **(overrides or {})}), fconf.build_robot("wolfgang"), walk
     )

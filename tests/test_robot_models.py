@@ -288,9 +288,9 @@ def test_bad_specs_are_rejected():
 
 
 def test_robot_config(spec):
-    from omegaconf import OmegaConf
+    from footsim.config import load_preset
 
-    cfg = OmegaConf.load("conf/robot/wolfgang.yaml")
+    cfg = load_preset("robot", "wolfgang")
     assert robot_from_config(cfg).total_mass == pytest.approx(spec.total_mass)
     assert robot_from_config("wolfgang").dof == 20
     with pytest.raises(ValueError, match="unknown robot config key"):

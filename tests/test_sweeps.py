@@ -417,13 +417,3 @@ def test_group_defaults_match_hydra_composition(name, base):
     raw = yaml.safe_load((conf_dir() / "controller" / f"{name}.yaml").read_text())  # a parser other than ours
     overrides = {k: v for k, v in raw.items() if k != "defaults"}
     assert ours == {**load_preset("controller", base), **overrides} and "defaults" not in ours
-
-
-def test_group_defaults_must_name_presets(tmp_path, monkeypatch):
-    from footsim import config as fconf
-
-    (tmp_path / "controller").mkdir()
-    (tmp_path / "controller" / "odd.yaml").write_text("defaults:\n  - _self_\n  - velocity\nmax_vel_x: 0.1\n")
-    monkeypatch.setattr(fconf, "conf_dir", lambda: tmp_path)
-    with pytest.raises(ValueError, match="controller preset 'odd': defaults"):
-        fconf.load_preset("controller", "odd")

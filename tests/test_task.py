@@ -5,10 +5,11 @@ import numpy as np
 import pymunk
 import pytest
 
+from footsim.config import load_preset
 from footsim.geometry import Pose2D, wrap_angles
 from footsim.scene import Obstacle, Scene
 from footsim.tasks import nav
-from footsim.tasks.nav import WEIGHTS_NO_OBSTACLES, WEIGHTS_OBSTACLES, NavTaskConfig
+from footsim.tasks.nav import NavTaskConfig
 from footsim.tasks.noise import NoiseModel
 from footsim.tasks.scenes import SceneSampler, load_scenes, sample_scenes, save_scenes
 
@@ -23,8 +24,6 @@ def test_reward_terms_match_hand_computation():
     assert terms["orientation"] == pytest.approx(1.0)  # β = 0
     assert terms["obstacle"] == 1.0  # no obstacles
     assert terms["continuity"] == pytest.approx((math.exp(-1.5) + math.exp(-3) + 4) / 6)
-    total = nav.weighted_reward(terms, WEIGHTS_NO_OBSTACLES)
-    assert total == pytest.approx(0.3 * 0.6065307 + 0.3 * 0.0014007 + 0.2 * 1 + 0.2 * 0.7121529, rel=1e-5)
 
 
 def test_orientation_clause_and_obstacle_term_exclude_ball():
@@ -38,9 +37,21 @@ def test_orientation_clause_and_obstacle_term_exclude_ball():
     assert far["orientation"] == pytest.approx(math.exp(-math.pi))
 
 
+def _weights(preset: str) -> dict[str, float]:
+    return {name: entry["weight"] for name, entry in load_preset("task", preset)["reward"].items()}
+
+
 def test_weight_sets_sum_to_one_and_terms_in_unit_interval():
-    assert sum(WEIGHTS_NO_OBSTACLES.values()) == pytest.approx(1)
-    assert sum(WEIGHTS_OBSTACLES.values()) == pytest.approx(1)
+    assert _weights("nav") == {
+        "distance": 0.3,
+        "angle": 0.3,
+        "orientation": 0.2,
+        "obstacle": 0.0,
+        "continuity": 0.2,
+        "stability": 0.0,
+    }  # thesis 5.5
+    assert sum(_weights("nav").values()) == pytest.approx(1)
+    assert sum(_weights("nav_obstacles").values()) == pytest.approx(1)
     rng = np.random.default_rng(0)
     sampler = SceneSampler(obstacles=True)
     for _ in range(200):

@@ -18,12 +18,13 @@ def test_stability_term_is_exp_of_the_max_tilt():
     a = [0.0] * 6
     plain = nav.reward_terms(Pose2D(), scene, a, a)
     assert "stability" not in plain  # the thesis's five terms unless asked
-    terms = nav.reward_terms(Pose2D(), scene, a, a, max_tilt=0.1, stability_scale=0.2)
-    assert terms["stability"] == pytest.approx(math.exp(-0.5))  # hand-computed: exp(-0.1 / 0.2)
+    terms = nav.reward_terms(Pose2D(), scene, a, a, max_tilt=0.1)
+    assert terms["stability"] == pytest.approx(math.exp(-0.5))  # hand-computed: exp(-0.1 / 0.2), the default scale
     assert {k: terms[k] for k in plain} == plain
-    weights = {"distance": 0.25, "angle": 0.25, "orientation": 0.2, "continuity": 0.15, "stability": 0.15}
-    expected = sum(weights[k] * terms[k] for k in weights)
-    assert nav.weighted_reward(terms, weights) == pytest.approx(expected)
+    config = NavTaskConfig(reward={"distance": {"weight": 1.0}, "stability": {"weight": 1.0, "params": {"scale": 0.4}}})
+    assert config.uses_tilt
+    terms = nav.reward_terms(Pose2D(), scene, a, a, max_tilt=0.1, config=config)
+    assert terms == pytest.approx({"distance": math.exp(-0.5), "stability": math.exp(-0.25)})
 
 
 def test_imu_values_are_appended_after_the_thesis_layout():
@@ -44,14 +45,20 @@ def test_bad_option_values_are_named():
     with pytest.raises(ValueError, match="task.imu_scale"):
         fconf.build_task({"name": "nav", "imu_scale": -1.0})
     with pytest.raises(ValueError, match="unknown term.*wobble"):
-        fconf.build_task({"name": "nav", "reward_weights": {"wobble": 0.1}})
+        fconf.build_task({"name": "nav", "reward": {"wobble": {"weight": 0.1}}})
 
 
 def test_2d_env_with_the_options_reports_zero_tilt():
     task = dict(
         fconf.load_preset("task", "nav"),
         observe_imu=True,
-        reward_weights={"distance": 0.3, "angle": 0.3, "orientation": 0.2, "continuity": 0.1, "stability": 0.1},
+        reward={
+            "distance": {"weight": 0.3},
+            "angle": {"weight": 0.3},
+            "orientation": {"weight": 0.2},
+            "continuity": {"weight": 0.1},
+            "stability": {"weight": 0.1, "params": {"scale": 0.2}},
+        },
     )
     env = FootstepEnv(task=task)
     obs, _ = env.reset(seed=0)

@@ -355,12 +355,9 @@ def test_engine_rejects_inconsistent_configuration():
 
 
 def test_walk_config_matches_walk_params():
-    import pathlib
+    from footsim.config import load_preset
 
-    from omegaconf import OmegaConf
-
-    conf = OmegaConf.load(pathlib.Path(__file__).parents[1] / "conf" / "walk" / "default.yaml")
-    assert WalkParams.from_mapping(OmegaConf.to_container(conf)) == WalkParams()
+    assert WalkParams.from_mapping(load_preset("walk", "default")) == WalkParams()
 
 
 def test_reset_places_the_feet_around_a_pose():

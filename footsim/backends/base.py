@@ -49,8 +49,6 @@ class Backend(ABC):
     #: Names of randomization terms this backend supports (see ``footsim.randomization.TERMS``).
     #: Asking for anything else is an error (never a silent no-op).
     capabilities: frozenset[str] = frozenset()
-    #: Whether touching an obstacle ends the episode (2D: yes, per the thesis; 3D: configurable).
-    collision_ends_episode: bool = True
 
     @abstractmethod
     def reset(self, scene: Scene, rng: np.random.Generator) -> Pose2D:

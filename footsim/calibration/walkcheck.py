@@ -93,7 +93,7 @@ def error_ratio(executed: dict, commanded: dict, measure: str) -> float:
 
 
 def make_backend(name: str):
-    walk = fconf.build_walk(fconf.load_preset("walk", fconf.walk_preset_for(name)))
+    walk = fconf.build_walk(fconf.load_preset("walk", backend=name))
     robot = fconf.build_robot("wolfgang")
     return fconf.build_backend(fconf.load_preset("backend", {"name": name}), robot, walk)
 
@@ -158,7 +158,7 @@ def execution_model_consistency(model_path: str, backend3d: str = "mujoco", seed
         ref = {s.name: run_sequence(ref_backend, s, seed=seed) for s in sequences}
     finally:
         ref_backend.close()
-    walk = fconf.build_walk(fconf.load_preset("walk", fconf.walk_preset_for("pymunk")))
+    walk = fconf.build_walk(fconf.load_preset("walk", backend="pymunk"))
     robot = fconf.build_robot("wolfgang")
     variants: dict[str, dict[str, Any]] = {
         "pymunk (geometry)": {},

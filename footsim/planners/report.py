@@ -19,12 +19,11 @@ import json
 import sys
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, cast
+from typing import Any
 
 import numpy as np
-from omegaconf import OmegaConf
 
-from footsim.config import conf_dir
+from footsim.config import load_preset
 from footsim.env import FootstepEnv
 from footsim.geometry import Pose2D
 from footsim.planners import make_controller
@@ -205,10 +204,8 @@ def example_paths(
 
 
 def _conf(name: str) -> dict:
-    """A controller's preset from conf/controller/<name>.yaml."""
-
-    preset = OmegaConf.to_container(OmegaConf.load(conf_dir() / "controller" / f"{name}.yaml"), resolve=True)
-    return cast(dict, preset)  # the preset file is a mapping
+    """A controller's preset, composed from conf/controller/<name>.yaml."""
+    return load_preset("controller", name)
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -39,13 +39,16 @@ def save_config(run_dir: Path, cfg: DictConfig) -> None:
 
 
 def load_run_config(run_dir: str | os.PathLike) -> DictConfig:
+    """A run's resolved config, in today's keys (``footsim.config.upgrade_run_config``)."""
+    from footsim.config import upgrade_run_config
+
     path = Path(run_dir) / CONFIG_FILE
     if not path.is_file():
         raise FileNotFoundError(f"{run_dir} is not a footsim run directory: {CONFIG_FILE} is missing")
     cfg = OmegaConf.load(path)
     if not isinstance(cfg, DictConfig):
         raise ValueError(f"{path} is not a footsim run config: expected a mapping, got a list")
-    return cfg
+    return upgrade_run_config(cfg)
 
 
 def validate_train_config(cfg: DictConfig) -> None:

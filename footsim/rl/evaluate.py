@@ -362,7 +362,7 @@ def _main(cfg) -> dict:
         if cfg.get(group) is not None:
             run_cfg[group] = fconf.load_preset(group, cfg[group])
     if cfg.get("backend") is not None:  # a policy moved to another backend walks with that backend's gait
-        run_cfg.walk = fconf.load_preset("walk", fconf.walk_preset_for(run_cfg.backend.name))
+        run_cfg.walk = fconf.load_preset("walk", backend=run_cfg.backend.name)
     out_dir = Path(HydraConfig.get().runtime.output_dir)
     return evaluate_run(run_cfg, run_dir, out_dir, cfg)
 
@@ -371,5 +371,7 @@ def main() -> None:
     import hydra
 
     from footsim.config import conf_dir
+    from footsim.schema import register_schemas
 
+    register_schemas(controllers=True)  # the controller group's schemas, before hydra.main composes
     hydra.main(config_path=str(conf_dir()), config_name="eval", version_base="1.3")(_main)()

@@ -117,7 +117,7 @@ def eval_config(run_cfg, eval_backend: str, randomization: str):
     OmegaConf.set_struct(cfg, False)
     if eval_backend != run_cfg.backend.name:
         cfg.backend = fconf.load_preset("backend", eval_backend)
-        cfg.walk = fconf.load_preset("walk", fconf.walk_preset_for(eval_backend))
+        cfg.walk = fconf.load_preset("walk", backend=eval_backend)
     cfg.randomization = fconf.load_preset("randomization", randomization)
     return cfg
 

@@ -1,25 +1,46 @@
-"""The footstep navigation task of thesis chapter 5: observation, reward and success.
+"""The footstep navigation task of thesis chapter 5: observation, reward terms and termination.
 
-Small stateless functions (``goal_features``, ``ray_distances``, ``reward_terms``) configured by
-a ``NavTaskConfig``; nothing here knows which backend runs.
+:class:`NavTask` owns the episode: from the truth the backend reports (``StepResult``) it decides
+the reward (a table of terms, :mod:`footsim.tasks.terms`) and the outcome (a table of termination
+terms in priority order), and it builds the observation.  Small stateless functions
+(``goal_features``, ``ray_distances``, the terms) configured by a ``NavTaskConfig``; nothing here
+knows which backend runs.
 """
 
 from __future__ import annotations
 
 import math
 import struct
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
 from footsim.geometry import Pose2D, wrap_angle
 from footsim.scene import Obstacle, Scene, circle_array
 from footsim.tasks import rays
+from footsim.tasks.terms import (
+    StepContext,
+    reward_table,
+    reward_term,
+    termination_table,
+    termination_term,
+)
 
-WEIGHTS_NO_OBSTACLES = {"distance": 0.3, "angle": 0.3, "orientation": 0.2, "obstacle": 0.0, "continuity": 0.2}
-WEIGHTS_OBSTACLES = {"distance": 0.25, "angle": 0.25, "orientation": 0.15, "obstacle": 0.2, "continuity": 0.15}
-#: The thesis's five terms plus "stability" (3D option: exp(-max trunk tilt / stability_scale)).
-REWARD_TERMS = frozenset(WEIGHTS_NO_OBSTACLES) | {"stability"}
+#: The thesis 5.5 reward without obstacles (conf/task/nav.yaml), and "stability" (3D option:
+#: exp(-max trunk tilt / scale), weight 0 = off); the order is the order of the weighted sum.
+DEFAULT_REWARD = {
+    "distance": {"weight": 0.3},
+    "angle": {"weight": 0.3},
+    "orientation": {"weight": 0.2},
+    "obstacle": {"weight": 0.0},
+    "continuity": {"weight": 0.2},
+    "stability": {"weight": 0.0, "params": {"scale": 0.2}},
+}
+#: Outcomes that end an episode, highest priority first; a step that ends none of them and
+#: reaches ``max_steps`` is truncated with outcome "timeout".
+DEFAULT_TERMINATIONS = {"sim_error": None, "fall": None, "collision": None, "success": None}
+OUTCOMES = ("running", "success", "timeout", "fall", "collision", "sim_error")
 
 
 @dataclass(frozen=True)
@@ -32,11 +53,15 @@ class NavTaskConfig:
     n_rays: int = 36  # 10° apart
     ray_range: float = 5.0  # a ray that hits nothing reports this [m]
     ray_scale: float = 1.0  # observation: tanh(ray / ray_scale)
-    reward_weights: dict = field(default_factory=lambda: dict(WEIGHTS_NO_OBSTACLES))
+    reward: dict = field(default_factory=lambda: {k: dict(v) for k, v in DEFAULT_REWARD.items()})
+    terminations: dict = field(default_factory=lambda: dict(DEFAULT_TERMINATIONS))
+    fall_threshold: float = 0.7  # [rad] the step's largest trunk roll or pitch beyond this is a fall (thesis 5.1.2)
+    #: whether touching an obstacle ends the episode; None: by backend kind (2D yes, as in the
+    #: thesis; 3D no, the contact is reported in ``info``), resolved by :class:`NavTask`
+    collision_ends_episode: bool | None = None
     # Options beyond the thesis (off by default; docs/RESULTS.md measures their effect):
     observe_imu: bool = False  # append tanh(roll / imu_scale), tanh(pitch / ·), tanh(max tilt / ·)
     imu_scale: float = 0.35  # [rad]
-    stability_scale: float = 0.2  # [rad] reward term "stability" = exp(-max tilt / this)
     path_hint: bool = False  # append sin, cos of the bearing to a point on a global grid path (thesis ch. 9)
     path_hint_lookahead: float = 0.5  # [m] along the path past its point closest to the believed pose
     path_hint_clearance: float = 0.2  # [m] inflation of the obstacles for the path (footprint + margin)
@@ -50,7 +75,6 @@ class NavTaskConfig:
             "ray_range",
             "ray_scale",
             "imu_scale",
-            "stability_scale",
             "path_hint_lookahead",
             "path_hint_clearance",
         ):
@@ -63,15 +87,22 @@ class NavTaskConfig:
             raise ValueError(f"task.max_steps must be > 0, got {self.max_steps!r}")
         if int(self.n_rays) <= 0:
             raise ValueError(f"task.n_rays must be > 0, got {self.n_rays!r}")
-        unknown = set(self.reward_weights) - REWARD_TERMS
-        if unknown:
-            raise ValueError(f"task.reward_weights: unknown term(s) {sorted(unknown)}; valid: {sorted(REWARD_TERMS)}")
-        for key, value in self.reward_weights.items():
-            if not (math.isfinite(value) and value >= 0):
-                raise ValueError(f"task.reward_weights.{key} must be >= 0, got {value!r}")
-        # Derived once (the config is frozen; the env asks every step): whether the observation or
-        # the reward needs the backend's trunk tilt, and the ray block's directions and miss value.
-        object.__setattr__(self, "uses_tilt", bool(self.observe_imu or self.reward_weights.get("stability", 0.0) > 0.0))
+        if not 0.0 < self.fall_threshold < math.pi / 2:
+            raise ValueError(f"task.fall_threshold must be in (0, pi/2) rad, got {self.fall_threshold!r}")
+        if not (self.collision_ends_episode is None or isinstance(self.collision_ends_episode, bool)):
+            raise ValueError(
+                f"task.collision_ends_episode must be true, false or null, got {self.collision_ends_episode!r}"
+            )
+        rewards = reward_table(self.reward)
+        terminations = termination_table(self.terminations)
+        # Derived once (the config is frozen; the task asks every step): whether the observation or
+        # a weighted reward term needs the backend's trunk tilt, the terms computed each step (a
+        # term needing the tilt only when the task uses it), and the ray block's directions and miss value.
+        uses_tilt = bool(self.observe_imu or any(t.weight > 0.0 and "tilt" in t.needs for t in rewards))
+        available = {"tilt"} if uses_tilt else set()
+        object.__setattr__(self, "uses_tilt", uses_tilt)
+        object.__setattr__(self, "reward_terms", tuple(t for t in rewards if t.needs <= available))
+        object.__setattr__(self, "termination_terms", terminations)
         object.__setattr__(self, "ray_directions", _ray_directions(int(self.n_rays)))
         object.__setattr__(self, "ray_miss", float(np.tanh(self.ray_range / self.ray_scale)))  # a ray hitting nothing
 
@@ -183,42 +214,50 @@ def _nearest_circle_distance(
     return math.hypot(ox - px, oy - py) - r
 
 
-def reward_terms(
-    pose: Pose2D,
-    scene: Scene,
-    action,
-    previous_action,
-    features: tuple[float, float, float] | None = None,
-    max_tilt: float | None = None,
-    stability_scale: float = 0.2,
-    arrays: tuple[np.ndarray, np.ndarray] | None = None,
-) -> dict[str, float]:
-    """The five thesis 5.5 reward terms, each in [0, 1]; with ``max_tilt`` (the largest trunk
-    roll or pitch during the step, 3D) also ``stability = exp(-max_tilt / stability_scale)``.
+# -- reward terms (thesis 5.5; each in [0, 1]) -------------------------------------------------
+@reward_term()
+def distance(step: StepContext) -> float:
+    """exp(-d / 2): nearer the goal is better."""
+    return math.exp(-0.5 * step.distance)
 
-    The ball is excluded from the obstacle term (it would create a local minimum before the goal).
-    ``features`` may pass ``goal_features(pose, scene.goal)`` already computed by the caller,
-    ``arrays`` the episode's :func:`scene_arrays`; the actions may be arrays or lists of 6 floats.
-    """
-    d, alpha, beta = features if features is not None else goal_features(pose, scene.goal)
-    d_obs = math.inf
-    if scene.obstacles:
-        d_obs = _nearest_circle_distance(pose, scene.obstacle_circles, None if arrays is None else arrays[1])
+
+@reward_term()
+def angle(step: StepContext) -> float:
+    """exp(-5 d) · exp(-|α|): take the goal's heading, once near it."""
+    return math.exp(-5.0 * step.distance) * math.exp(-abs(step.alpha))
+
+
+@reward_term()
+def orientation(step: StepContext) -> float:
+    """exp(-|β|): face the goal while far from it (1 within 0.1 m)."""
+    return 1.0 if step.distance < 0.1 else math.exp(-abs(step.beta))
+
+
+@reward_term()
+def obstacle(step: StepContext) -> float:
+    """exp(-0.0015 / d_obs²) of the distance to the nearest obstacle edge (1 without obstacles).
+
+    The ball is excluded (it would create a local minimum before the goal)."""
+    scene = step.scene
+    if not scene.obstacles:
+        return 1.0
+    d_obs = _nearest_circle_distance(step.pose, scene.obstacle_circles, step.arrays[1])
     if d_obs == math.inf:
-        r_obs = 1.0
-    else:
-        d_obs = max(d_obs, 1e-6)
-        r_obs = math.exp(-0.0015 * (1.0 / d_obs) ** 2)
-    terms = {
-        "distance": math.exp(-0.5 * d),
-        "angle": math.exp(-5.0 * d) * math.exp(-abs(alpha)),
-        "orientation": 1.0 if d < 0.1 else math.exp(-abs(beta)),
-        "obstacle": r_obs,
-        "continuity": _continuity(action, previous_action),
-    }
-    if max_tilt is not None:
-        terms["stability"] = math.exp(-abs(max_tilt) / stability_scale)
-    return terms
+        return 1.0
+    d_obs = max(d_obs, 1e-6)
+    return math.exp(-0.0015 * (1.0 / d_obs) ** 2)
+
+
+@reward_term()
+def continuity(step: StepContext) -> float:
+    """mean(exp(-3 |a(t) - a(t-1)|)) over the action components."""
+    return _continuity(step.action, step.previous_action)
+
+
+@reward_term(needs=("tilt",))
+def stability(step: StepContext, scale: float) -> float:
+    """exp(-max tilt / scale) of the largest trunk roll or pitch during the step (3D option)."""
+    return math.exp(-abs(step.max_tilt) / scale)
 
 
 def _continuity(action, previous_action) -> float:
@@ -243,12 +282,60 @@ def _continuity(action, previous_action) -> float:
     return total / len(a)
 
 
-def weighted_reward(terms: dict[str, float], weights: dict[str, float]) -> float:
-    get = weights.get
-    total = 0  # the same left-to-right sum as sum(...): bit-identical rewards
-    for k, v in terms.items():
-        total += get(k, 0.0) * v
-    return float(total)
+# -- termination terms (priority order: the task config's ``terminations``) --------------------
+@termination_term(settle=lambda reward, step: 0.0)
+def sim_error(step: StepContext) -> bool:
+    """The simulation became invalid (the backend's verdict, or a non-finite pose); reward 0."""
+    return step.result.sim_error is not None
+
+
+@termination_term()
+def fall(step: StepContext) -> bool:
+    """The step's largest trunk roll or pitch exceeded ``fall_threshold``."""
+    return step.result.max_tilt > step.config.fall_threshold
+
+
+@termination_term()
+def collision(step: StepContext) -> bool:
+    """The robot touched an obstacle or the ball, where collisions end the episode."""
+    return step.result.collided and step.config.collision_ends_episode
+
+
+def _success_bonus(reward: float, step: StepContext) -> float:
+    """The rest of the episode at the maximum step reward (``success_bonus`` per step; thesis: 1)."""
+    config = step.config
+    return reward + config.success_bonus * float(config.max_steps - step.steps)
+
+
+@termination_term(settle=_success_bonus)
+def success(step: StepContext) -> bool:
+    """Within ``success_distance`` of the goal and ``success_angle`` of its heading."""
+    return is_success(step.pose, step.scene.goal, step.config, (step.distance, step.alpha, step.beta))
+
+
+def reward_terms(
+    pose: Pose2D,
+    scene: Scene,
+    action,
+    previous_action,
+    features: tuple[float, float, float] | None = None,
+    max_tilt: float | None = None,
+    arrays: tuple[np.ndarray, np.ndarray] | None = None,
+    config: NavTaskConfig | None = None,
+) -> dict[str, float]:
+    """The values of ``config``'s reward terms (default: the thesis's five and "stability") at one
+    step, outside an env; "stability" (or any term needing the tilt) only with ``max_tilt``.
+
+    ``features`` may pass ``goal_features(pose, scene.goal)``, ``arrays`` the episode's
+    :func:`scene_arrays`; the actions may be arrays or lists of 6 floats.
+    """
+    config = config or NavTaskConfig()
+    step = StepContext(config)
+    step.pose, step.scene, step.action, step.previous_action = pose, scene, action, previous_action
+    step.distance, step.alpha, step.beta = features if features is not None else goal_features(pose, scene.goal)
+    step.arrays = arrays if arrays is not None else scene_arrays(scene)
+    step.max_tilt = max_tilt
+    return {t.name: t.call(step) for t in reward_table(config.reward) if max_tilt is not None or "tilt" not in t.needs}
 
 
 def is_success(
@@ -347,3 +434,109 @@ class PathHint:
             return 0.0, 1.0
         angle = wrap_angle(math.atan2(dy, dx) - pose.theta)
         return math.sin(angle), math.cos(angle)
+
+
+_ZERO_TILT = (0.0, 0.0, 0.0)
+_NO_HINT = (0.0, 1.0)
+_ZERO_ACTION = [0.0] * 6  # never mutated: actions are fresh lists
+_isfinite = math.isfinite
+
+
+class NavTask:
+    """One navigation episode at a time: observation, reward and termination from the truth.
+
+    ``backend_kind`` ("2d" or "3d") resolves ``collision_ends_episode: null``.  The env calls
+    :meth:`reset` with the scene and start pose, :meth:`step` with each ``StepResult`` and
+    :meth:`observe` with the pose the robot believes it has.
+
+    Attributes (read-only for callers): ``config`` (collision rule resolved), ``scene``, ``pose``
+    (true pose, the last finite one), ``previous_actions`` (a(t-1), a(t-2)), ``tilt`` (roll,
+    pitch, max tilt of the last step; zeros unless the task uses the tilt), ``steps``, ``outcome``.
+    """
+
+    def __init__(self, config: NavTaskConfig, backend_kind: str):
+        if config.collision_ends_episode is None:
+            config = replace(config, collision_ends_episode=backend_kind == "2d")
+        self.config = config
+        self._rewards = tuple((t.name, t.call, t.weight) for t in config.reward_terms)
+        self._terminations = tuple((t.name, t.call, t.settle) for t in config.termination_terms)
+        self._step = StepContext(config)
+        self.scene: Scene | None = None
+        self.pose = Pose2D()
+        self.previous_actions = (_ZERO_ACTION, _ZERO_ACTION)
+        self.tilt = _ZERO_TILT
+        self.steps = 0
+        self.outcome = "running"
+        self._features: tuple[float, float, float] | None = None  # goal features of self.pose after a step
+        self._path_hint: PathHint | None = None
+        self._arrays: tuple[np.ndarray, np.ndarray] | None = None
+
+    @property
+    def obstacles(self) -> bool:
+        return self.config.obstacles
+
+    @property
+    def observation_size(self) -> int:
+        return self.config.observation_size
+
+    @property
+    def observation_layout(self) -> tuple[tuple[str, int], ...]:
+        return self.config.observation_layout
+
+    def reset(self, scene: Scene, pose: Pose2D) -> None:
+        self.scene, self.pose = scene, pose
+        self.previous_actions = (_ZERO_ACTION, _ZERO_ACTION)
+        self.tilt = _ZERO_TILT  # standing after reset
+        self.steps = 0
+        self.outcome = "running"
+        self._features = None
+        self._path_hint = PathHint(scene, pose, self.config) if self.config.path_hint else None
+        self._arrays = scene_arrays(scene)  # the obstacles for the compiled kernels, once per episode
+        step = self._step
+        step.scene, step.arrays = scene, self._arrays
+
+    def step(self, result: Any, action: list[float]) -> tuple[float, dict[str, float], bool, bool]:
+        """``(reward, reward terms, terminated, truncated)`` of one executed double step.
+
+        ``result`` is the backend's ``StepResult`` (a non-finite pose becomes a sim error and the
+        last finite pose is kept: the learner never sees NaN); ``action`` the 6 unit-box floats."""
+        config, step = self.config, self._step
+        self.steps += 1
+        pose = result.pose
+        if result.sim_error is None and _isfinite(pose[0]) and _isfinite(pose[1]) and _isfinite(pose[2]):
+            self.pose = pose
+        else:
+            result.sim_error = result.sim_error or "non-finite pose"
+        features = self._features = goal_features(self.pose, self.scene.goal)
+        step.pose, step.result, step.steps = self.pose, result, self.steps
+        step.distance, step.alpha, step.beta = features
+        step.action, step.previous_action = action, self.previous_actions[0]
+        if config.uses_tilt:  # 3D options: IMU in the observation, stability in the reward
+            step.max_tilt = result.max_tilt
+            self.tilt = (*result.tilt, result.max_tilt)
+        terms = {}
+        reward = 0  # the weighted sum, left to right in table order
+        for name, call, weight in self._rewards:
+            value = terms[name] = call(step)
+            reward += weight * value
+        reward = float(reward)
+        terminated = False
+        for name, call, settle in self._terminations:
+            if call(step):
+                self.outcome, terminated = name, True
+                if settle is not None:
+                    reward = settle(reward, step)
+                break
+        truncated = not terminated and self.steps >= config.max_steps
+        if truncated:
+            self.outcome = "timeout"
+        self.previous_actions = (action, self.previous_actions[0])
+        return reward, terms, terminated, truncated
+
+    def observe(self, believed: Pose2D) -> np.ndarray:
+        """The observation from the pose the robot believes it has (see :func:`observation`)."""
+        hint = _NO_HINT if self._path_hint is None else self._path_hint.bearing(believed)
+        features = self._features if believed is self.pose else None
+        return observation(
+            believed, self.scene, self.previous_actions, self.config, features, self.tilt, hint, self._arrays
+        )

@@ -76,7 +76,6 @@ class Pymunk2DBackend(Backend):
     name = "pymunk"
     kind = "2d"
     capabilities = frozenset({"footstep_noise_x", "footstep_noise_y", "footstep_noise_theta", "walk_freq_scale"})
-    collision_ends_episode = True
     #: ``reset`` may be given an rng that is only created when first drawn from (the env's
     #: ``DeferredGenerator``): this backend draws only with execution noise or an execution model.
     deferred_rng = True
@@ -87,7 +86,6 @@ class Pymunk2DBackend(Backend):
         self,
         robot: RobotSpec,
         walk: WalkParams,
-        collision_ends_episode: bool = True,
         execution_model: str | None = None,
         execution_noise: bool = True,
         execution_falls: bool = False,
@@ -112,7 +110,6 @@ class Pymunk2DBackend(Backend):
         self.execution_falls = bool(execution_falls)
         self.robot = robot
         self.walk = walk
-        self.collision_ends_episode = bool(collision_ends_episode)
         self.geometry = FootstepGeometry(robot.step_limits, robot.foot_length, robot.foot_width, walk.foot_distance)
         foot_half = (0.5 * robot.foot_length, 0.5 * robot.foot_width)
         trunk_half = tuple(0.5 * v for v in robot.torso_footprint)
@@ -247,9 +244,12 @@ class Pymunk2DBackend(Backend):
         self.history += [(Side.RIGHT, after_first[1]), (Side.LEFT, after_second[0])]
         self.nav_history.append(nav)
         # positional (checked against StepResult's fields at import): keywords cost a µs here
-        return StepResult(
+        result = StepResult(
             nav, self._duration, after_second, executed, fell, collided, None, {"foot_interference": n_interfered}
         )
+        if fell:  # the execution model's fall: the tilt of a robot lying on the ground, as the 3D driver reports it
+            result.max_tilt = math.pi / 2
+        return result
 
     def _apply_execution_model(
         self, before: FeetState, after_first: FeetState, after_second: FeetState, double_step: DoubleStep

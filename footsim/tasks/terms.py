@@ -1,0 +1,216 @@
+"""Reward and termination terms as data: one small function plus one config entry each.
+
+A **reward term** is a function ``f(step, **params) -> float`` over the :class:`StepContext` the
+task fills once per step (pose, goal features, actions, the backend's ``StepResult``).  It enters
+a task through one entry of the task config's ``reward`` table::
+
+    reward:
+      distance: {weight: 0.3}                                  # a registered term, by name
+      stability: {weight: 0.1, params: {scale: 0.2}}           # params: the function's keywords
+      clearance: {weight: 0.05, func: "mypkg.terms:clearance"} # a function in the user's module
+
+A **termination term** is a function ``f(step, **params) -> bool``; the task config's
+``terminations`` table lists them in priority order (the first that holds names the outcome).
+Terms are found by name in :data:`REWARD_TERMS` / :data:`TERMINATION_TERMS` (the built-in ones
+register with the decorators below) or by ``func: "module:function"``, so a user adds a term
+in their own module and one config line, touching no footsim file.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from functools import partial
+from typing import Any
+
+#: What a term may need beyond the pose and actions: "tilt" is the backend's trunk tilt, which the
+#: task asks for only when a weighted term or the observation uses it.
+REQUIREMENTS = frozenset({"tilt"})
+
+
+class StepContext:
+    """The features of one env step that terms read (the task refills one instance every step).
+
+    ``pose``: true navigation pose after the step; ``distance``, ``alpha``, ``beta``: the goal
+    features from it (``nav.goal_features``); ``action`` / ``previous_action``: a(t), a(t-1) as 6
+    floats in [-1, 1]; ``result``: the backend's ``StepResult``; ``max_tilt``: its largest trunk
+    roll/pitch when the task uses the tilt, else None; ``steps``: double steps so far this episode;
+    ``scene`` and ``arrays`` (``nav.scene_arrays(scene)``) of the episode; ``config``: the task config.
+    """
+
+    __slots__ = (
+        "pose",
+        "distance",
+        "alpha",
+        "beta",
+        "action",
+        "previous_action",
+        "result",
+        "max_tilt",
+        "steps",
+        "scene",
+        "arrays",
+        "config",
+    )
+
+    def __init__(self, config: Any = None):
+        self.config = config
+        self.pose = self.scene = self.arrays = self.result = self.max_tilt = None
+        self.distance = self.alpha = self.beta = 0.0
+        self.action = self.previous_action = None
+        self.steps = 0
+
+
+RewardFunction = Callable[..., float]
+TerminationFunction = Callable[..., bool]
+
+
+@dataclass(frozen=True)
+class RewardTermSpec:
+    func: RewardFunction
+    needs: frozenset[str] = frozenset()
+
+
+@dataclass(frozen=True)
+class TerminationTermSpec:
+    func: TerminationFunction
+    #: ``settle(reward, step) -> reward``: how the step's reward changes when this term ends the
+    #: episode (None: unchanged).
+    settle: Callable[[float, StepContext], float] | None = None
+
+
+REWARD_TERMS: dict[str, RewardTermSpec] = {}
+TERMINATION_TERMS: dict[str, TerminationTermSpec] = {}
+
+
+def reward_term(name: str | None = None, *, needs: tuple[str, ...] = ()) -> Callable[[RewardFunction], RewardFunction]:
+    """Register ``f(step, **params) -> float`` as reward term ``name`` (default: the function's name)."""
+    unknown = set(needs) - REQUIREMENTS
+    if unknown:
+        raise ValueError(f"reward term requirements {sorted(unknown)} unknown; valid: {sorted(REQUIREMENTS)}")
+
+    def register(func: RewardFunction) -> RewardFunction:
+        REWARD_TERMS[name or func.__name__] = RewardTermSpec(func, frozenset(needs))
+        return func
+
+    return register
+
+
+def termination_term(
+    name: str | None = None, *, settle: Callable[[float, StepContext], float] | None = None
+) -> Callable[[TerminationFunction], TerminationFunction]:
+    """Register ``f(step, **params) -> bool`` as termination term ``name`` (default: the function's name)."""
+
+    def register(func: TerminationFunction) -> TerminationFunction:
+        TERMINATION_TERMS[name or func.__name__] = TerminationTermSpec(func, settle)
+        return func
+
+    return register
+
+
+def import_function(path: str, where: str) -> Callable:
+    """The function named by ``"package.module:function"``, naming ``where`` if it cannot be found."""
+    module_name, sep, attr = path.partition(":")
+    if not sep or not module_name or not attr:
+        raise ValueError(f"{where}.func must look like 'package.module:function', got {path!r}")
+    try:
+        func = getattr(importlib.import_module(module_name), attr)
+    except (ImportError, AttributeError) as exc:
+        raise ValueError(f"{where}.func {path!r} cannot be imported: {exc}") from exc
+    if not callable(func):
+        raise ValueError(f"{where}.func {path!r} is not callable")
+    return func
+
+
+@dataclass(frozen=True)
+class RewardTerm:
+    """One resolved entry of a reward table: ``weight · func(step, **params)``."""
+
+    name: str
+    weight: float
+    call: Callable[[StepContext], float]  # func with its params bound
+    needs: frozenset[str] = field(default_factory=frozenset)
+
+
+@dataclass(frozen=True)
+class TerminationTerm:
+    """One resolved entry of a termination table."""
+
+    name: str
+    call: Callable[[StepContext], bool]
+    settle: Callable[[float, StepContext], float] | None = None
+
+
+def _entry(entry: Any, where: str, keys: frozenset[str]) -> dict:
+    if entry is None:
+        return {"params": {}}
+    if not isinstance(entry, Mapping):
+        raise ValueError(f"{where} must be a mapping with keys {sorted(keys)}, got {entry!r}")
+    unknown = sorted(set(entry) - keys)
+    if unknown:
+        raise ValueError(f"{where}: unknown key(s) {unknown}; valid: {sorted(keys)}")
+    params = entry.get("params") or {}
+    if not isinstance(params, Mapping):
+        raise ValueError(f"{where}.params must be a mapping of keyword arguments, got {params!r}")
+    func = entry.get("func")
+    if func is not None and not isinstance(func, str):
+        raise ValueError(f"{where}.func must be a string 'package.module:function', got {func!r}")
+    return {**entry, "params": dict(params)}
+
+
+def _bind(func: Callable, params: dict) -> Callable:
+    return partial(func, **params) if params else func
+
+
+def reward_table(table: Mapping[str, Any], where: str = "task.reward") -> tuple[RewardTerm, ...]:
+    """Resolve a ``reward`` config table (term name → ``{weight, params, func}``), in its order."""
+    if not isinstance(table, Mapping):
+        raise ValueError(f"{where} must be a mapping of term name to {{weight, params, func}}, got {table!r}")
+    terms = []
+    for name, raw in table.items():
+        entry = _entry(raw, f"{where}.{name}", frozenset({"weight", "params", "func"}))
+        weight = entry.get("weight", 0.0)
+        if (
+            isinstance(weight, bool)
+            or not isinstance(weight, (int, float))
+            or not (math.isfinite(weight) and weight >= 0)
+        ):
+            raise ValueError(f"{where}.{name}.weight must be a number >= 0, got {weight!r}")
+        if entry.get("func") is not None:
+            func = import_function(entry["func"], f"{where}.{name}")
+            # a function its module registered with @reward_term(needs=...) keeps its requirements
+            needs = next((spec.needs for spec in REWARD_TERMS.values() if spec.func is func), frozenset())
+        elif name in REWARD_TERMS:
+            spec = REWARD_TERMS[name]
+            func, needs = spec.func, spec.needs
+        else:
+            raise ValueError(
+                f"{where}: unknown term {name!r}; registered: {sorted(REWARD_TERMS)} "
+                "(or give func: 'package.module:function')"
+            )
+        terms.append(RewardTerm(str(name), float(weight), _bind(func, entry["params"]), needs))
+    return tuple(terms)
+
+
+def termination_table(table: Mapping[str, Any], where: str = "task.terminations") -> tuple[TerminationTerm, ...]:
+    """Resolve a ``terminations`` config table (outcome name → ``{params, func}`` or null), in priority order."""
+    if not isinstance(table, Mapping):
+        raise ValueError(f"{where} must be a mapping of outcome name to {{params, func}}, got {table!r}")
+    terms = []
+    for name, raw in table.items():
+        entry = _entry(raw, f"{where}.{name}", frozenset({"params", "func"}))
+        settle = None
+        if entry.get("func") is not None:
+            func = import_function(entry["func"], f"{where}.{name}")
+        elif name in TERMINATION_TERMS:
+            spec = TERMINATION_TERMS[name]
+            func, settle = spec.func, spec.settle
+        else:
+            raise ValueError(
+                f"{where}: unknown term {name!r}; registered: {sorted(TERMINATION_TERMS)} "
+                "(or give func: 'package.module:function')"
+            )
+        terms.append(TerminationTerm(str(name), _bind(func, entry["params"]), settle))
+    return tuple(terms)
