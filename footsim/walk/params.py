@@ -114,7 +114,8 @@ class WalkParams:
         unknown = sorted(set(data) - known)
         if unknown:
             raise ValueError(f"unknown walk parameter(s) {unknown}; valid: {sorted(known)}")
-        return cls(**{k: None if v is None and k in _OPTIONAL else float(v) for k, v in data.items()})
+        values: dict = {k: None if v is None and k in _OPTIONAL else float(v) for k, v in data.items()}
+        return cls(**values)
 
     def to_dict(self) -> dict:
         return asdict(self)
