@@ -22,6 +22,20 @@ from footsim.walk.ik import leg_fk, rpy_from_rotation
 LIMITS = StepLimits(0.156, 0.103, 0.764)
 LEG = LegGeometry()
 PARAMS = WalkParams()
+# Every Bit-Bots shaping parameter away from its neutral default at once.
+SHAPED = WalkParams(
+    foot_apex_pitch=0.1,
+    foot_overshoot_ratio=0.1,
+    foot_overshoot_phase=0.85,
+    foot_z_pause=0.1,
+    foot_put_down_phase=0.9,
+    foot_put_down_z_offset=0.005,
+    trunk_pause=0.1,
+    first_step_trunk_phase=-0.5,
+    trunk_x_offset=-0.02,  # the x coefficients move the trunk forward: this keeps big turns within reach
+    trunk_x_offset_p_coef_forward=0.1,
+    trunk_x_offset_p_coef_turn=0.02,
+)
 
 
 def make_engine(params: WalkParams = PARAMS, control_dt: float = 1 / 500, **kwargs) -> QuinticWalk:
@@ -116,8 +130,9 @@ def test_standing_pose_is_mirror_symmetric_without_lateral_offset():
 # --- footsteps land where the planar geometry says --------------------------------------------
 
 
-def test_put_down_pose_by_fk_equals_landing_for_every_footstep():
-    engine = make_engine()
+@pytest.mark.parametrize("params", [PARAMS, SHAPED], ids=["default", "shaped"])
+def test_put_down_pose_by_fk_equals_landing_for_every_footstep(params):
+    engine = make_engine(params)
     geometry = engine.geometry
     extreme = DoubleStep(Footstep(0.3, -0.2, 1.0), Footstep(-0.3, 0.2, -1.0))
     orders = random_double_steps(20, 0.6, seed=11) + [
@@ -173,8 +188,9 @@ def _finite_differences(poses, dt):
     return p, vel, acc
 
 
-def test_feet_and_trunk_are_c2_across_half_step_boundaries():
-    engine = make_engine()
+@pytest.mark.parametrize("params", [PARAMS, SHAPED], ids=["default", "shaped"])
+def test_feet_and_trunk_are_c2_across_half_step_boundaries(params):
+    engine = make_engine(params)
     trajs = [engine.double_step(ds) for ds in random_double_steps(20, 0.5, seed=21)] + [engine.stop()]
     dt = engine.control_dt
     states = np.concatenate([t.state for t in trajs])

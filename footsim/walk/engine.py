@@ -8,12 +8,16 @@ check is the compiled kernel the footstep placement uses (:mod:`footsim.walk.ker
   foot flies first (``DoubleStep.first``), then the left foot.
 * Each half step starts with double support (``double_support_ratio`` of the half period),
   then single support.  The flying foot holds x/y/yaw through double support, lifts to
-  ``foot_rise`` at ``foot_apex_phase`` of single support and is put down on the target at
-  ``foot_put_down_phase``.  The put-down target always comes from
+  ``foot_rise`` at ``foot_apex_phase`` of single support (held for ``foot_z_pause``, the sole
+  pitched by ``foot_apex_pitch``), may overshoot the target by ``foot_overshoot_ratio`` of the
+  step at ``foot_overshoot_phase``, and is put down on the target at ``foot_put_down_phase``
+  (``foot_put_down_z_offset`` above it, then lowered).  The put-down target always comes from
   :meth:`FootstepGeometry.landing` (clipping and foot–foot interference live there only).
 * The trunk follows splines towards "apex" points that are shifted in time by
-  ``trunk_phase``: laterally it swings towards the support foot by ``trunk_swing`` × half the
-  lateral foot offset; forward it keeps pace with the feet; its height is ``trunk_height``
+  ``trunk_phase`` (``first_step_trunk_phase`` in the start movement and start step): laterally
+  it swings towards the support foot by ``trunk_swing`` × half the lateral foot offset and holds
+  there for ``trunk_pause`` of a half step; forward it keeps pace with the feet, ahead of the
+  support foot by ``trunk_x_offset`` (+ coefficients × step x and |step yaw|); its height is ``trunk_height``
   over the support foot and dips by ``trunk_z_movement`` while the weight moves between the
   feet; pitch = ``trunk_pitch`` + coefficients × step x and |step yaw|; yaw = mean of the feet.
 * Splines live in the support-foot frame and are rebuilt at every half-step boundary in the new
@@ -22,7 +26,8 @@ check is the compiled kernel the footstep placement uses (:mod:`footsim.walk.ker
 * States: IDLE → START_MOVEMENT (a trunk-only half cycle) → START_STEP → WALKING;
   STOP_STEP → STOP_MOVEMENT → IDLE.
 
-Timing.  The engine runs at ``control_dt``.  A double step lasts exactly
+Timing.  The engine runs at ``control_dt`` (the backend's control period; ``WalkParams.engine_freq``,
+the Bit-Bots' walk-node rate, is not used here).  A double step lasts exactly
 ``n = round(1 / (freq · control_dt))`` ticks: the walk period is quantised to a whole number of
 ticks, so the engine's effective frequency is ``1 / (n · control_dt)`` (``engine.freq``; for the
 defaults at 500 Hz, 255 ticks = 0.510 s vs 1/freq = 0.50935 s, −0.13 %).  The phase advances
@@ -68,9 +73,10 @@ class WalkState(IntEnum):
 
 # Pose channel order, for feet and trunk alike.
 X, Y, Z, ROLL, PITCH, YAW = range(6)
-# Channels that move and get splines: the soles stay flat (no roll/pitch) and the trunk never
-# rolls, so those channels are constant zero and are not evaluated.
-_FOOT_CHANNELS = [X, Y, Z, YAW]
+# Channels that move and get splines: the soles never roll (the flying sole pitches by
+# foot_apex_pitch) and the trunk never rolls, so the roll channels are constant zero and are not
+# evaluated.
+_FOOT_CHANNELS = [X, Y, Z, PITCH, YAW]
 _TRUNK_CHANNELS = [X, Y, Z, PITCH, YAW]
 # Swing-path clearance: interior samples of the planar path checked against the support foot,
 # and the largest outward detour [m] the flying foot may take around it.
@@ -189,6 +195,41 @@ def _overlap_bands(x: np.ndarray, theta: np.ndarray, half_l: float, half_w: floa
     return lo, hi
 
 
+def _check_swing_timing(p: WalkParams) -> None:
+    """The flying foot's knots (shares of single support) must come in order: lift, the apex
+    (held for ``foot_z_pause`` around ``foot_apex_phase``), the overshoot, put-down."""
+    if p.foot_apex_phase >= p.foot_put_down_phase:
+        raise ValueError(
+            f"WalkParams.foot_apex_phase ({p.foot_apex_phase}) must come before "
+            f"foot_put_down_phase ({p.foot_put_down_phase})"
+        )
+    rise, fall = p.foot_apex_phase - 0.5 * p.foot_z_pause, p.foot_apex_phase + 0.5 * p.foot_z_pause
+    if p.foot_z_pause > 0 and not (0.0 < rise and fall < p.foot_put_down_phase):
+        raise ValueError(
+            f"WalkParams.foot_z_pause ({p.foot_z_pause}) around foot_apex_phase ({p.foot_apex_phase}) must end "
+            f"after lift-off (0) and before foot_put_down_phase ({p.foot_put_down_phase})"
+        )
+    if p.foot_overshoot_phase < 1.0 and not p.foot_overshoot_phase * p.foot_put_down_phase > fall:
+        raise ValueError(
+            f"WalkParams.foot_overshoot_phase ({p.foot_overshoot_phase}) × foot_put_down_phase "
+            f"({p.foot_put_down_phase}) must come after the apex (foot_apex_phase {p.foot_apex_phase}"
+            f" + half foot_z_pause {p.foot_z_pause}), or be 1 (no overshoot)"
+        )
+    if p.foot_put_down_z_offset > 0 and p.foot_put_down_phase >= 1.0:
+        raise ValueError(
+            f"WalkParams.foot_put_down_z_offset ({p.foot_put_down_z_offset}) needs foot_put_down_phase < 1 "
+            f"(got {p.foot_put_down_phase}): the rest of single support lowers the foot to the ground"
+        )
+
+
+def _paused_knots(t: float, position: float, velocity: float, pause: float, min_gap: float) -> list:
+    """Knots holding a lateral trunk apex from ``t - pause`` to ``t + pause``: the apex position at
+    the apex velocity (zero in straight walking, where the trunk stands still laterally); knots
+    closer than ``min_gap`` to the half step's start are left out."""
+    knots = [(t - pause, position - velocity * pause, velocity), (t + pause, position + velocity * pause, velocity)]
+    return [knot for knot in knots if knot[0] > min_gap]
+
+
 def _constant_knots(value: float, duration: float) -> list:
     return [(0.0, value), (duration, value)]
 
@@ -211,11 +252,7 @@ class QuinticWalk:
                 f"WalkParams.foot_distance ({params.foot_distance}) and FootstepGeometry.foot_distance "
                 f"({geometry.foot_distance}) differ; build the geometry with the walk's foot distance"
             )
-        if params.foot_apex_phase >= params.foot_put_down_phase:
-            raise ValueError(
-                f"WalkParams.foot_apex_phase ({params.foot_apex_phase}) must come before "
-                f"foot_put_down_phase ({params.foot_put_down_phase})"
-            )
+        _check_swing_timing(params)
         self.params = params
         self.geometry = geometry
         self.leg = leg
@@ -422,9 +459,14 @@ class QuinticWalk:
             p.trunk_pitch + p.trunk_pitch_p_coef_forward * landing.x + p.trunk_pitch_p_coef_turn * abs(landing.theta)
         )
         half_offset_y = 0.5 * landing.y
+        offset_x = (
+            p.trunk_x_offset
+            + p.trunk_x_offset_p_coef_forward * landing.x
+            + p.trunk_x_offset_p_coef_turn * abs(landing.theta)
+        )
         at_support = np.array(
             [
-                (p.trunk_x_offset, (landing.x - last.x) / period),
+                (offset_x, (landing.x - last.x) / period),
                 (p.trunk_y_offset + half_offset_y * (1.0 - swing), 0.0),
                 (p.trunk_height, 0.0),
                 (0.0, 0.0),
@@ -433,7 +475,7 @@ class QuinticWalk:
             ]
         )
         c, s = math.cos(landing.theta), math.sin(landing.theta)
-        offset_x, offset_y = p.trunk_x_offset, p.trunk_y_offset - half_offset_y * (1.0 - swing)
+        offset_y = p.trunk_y_offset - half_offset_y * (1.0 - swing)
         speed = landing.x / half
         at_next = np.array(
             [
@@ -447,11 +489,14 @@ class QuinticWalk:
         )
         return at_support, at_next
 
-    def _apex_time(self) -> float:
-        """t1: when the trunk is at its apex over the support foot, from the half step's start."""
+    def _apex_time(self, kind: WalkState) -> float:
+        """t1: when the trunk is at its apex over the support foot, from the half step's start
+        (``first_step_trunk_phase`` in the start movement and the start step, else ``trunk_phase``)."""
         p = self.params
         half = self.half_period
-        time_shift = -0.5 * half + 0.5 * p.double_support_ratio * half + p.trunk_phase * half
+        start = kind in (WalkState.START_MOVEMENT, WalkState.START_STEP)
+        trunk_phase = p.start_trunk_phase if start else p.trunk_phase
+        time_shift = -0.5 * half + 0.5 * p.double_support_ratio * half + trunk_phase * half
         return half + time_shift
 
     def _trunk_knots(self, plan: _HalfStep, state: np.ndarray, next_plan: _HalfStep | None, foot_yaw: list) -> list:
@@ -471,7 +516,7 @@ class QuinticWalk:
         half = self.half_period
         min_gap = 0.02 * half  # knots closer than this to t = 0 would make needlessly stiff segments
         start = [(0.0, state[c, 0], state[c, 1], state[c, 2]) for c in range(6)]
-        t1 = self._apex_time()
+        t1 = self._apex_time(plan.kind)
 
         if plan.kind == WalkState.STOP_MOVEMENT:
             target = self._standing_trunk_between(Pose2D(), plan.landing)
@@ -487,7 +532,7 @@ class QuinticWalk:
             target = np.zeros((6, 3))
             target[:, :2] = at_support
             target = _transform_trunk_state(target, plan.landing.inverse())
-            t_target = plan.duration + t1 if t1 > min_gap else plan.duration + t1 + half
+            t_target = plan.duration + t1 if plan.duration + t1 > min_gap else plan.duration + t1 + half
             return [[start[c], (t_target, target[c, 0], target[c, 1])] for c in (X, Y, Z, PITCH)]
 
         at_support, at_next = self._trunk_apexes(plan.last, plan.landing, p.trunk_swing)
@@ -499,6 +544,7 @@ class QuinticWalk:
             at_next = np.zeros((6, 2))
             at_next[:, 0] = self._standing_trunk_between(Pose2D(), plan.landing)[:, 0]
         t2 = t1 + half
+        pause = 0.5 * p.trunk_pause * half  # half the lateral hold at each apex [s]
         channels = []
         for c in (X, Y, Z, PITCH):
             knots: list[tuple[float, ...]] = [start[c]]  # (t, position[, velocity[, acceleration]])
@@ -509,6 +555,11 @@ class QuinticWalk:
                 for t, value in ((t1 - 0.5 * half, dip), (t1, p.trunk_height), (t1 + 0.5 * half, dip)):
                     if t > min_gap:
                         knots.append((t, value))
+            elif c == Y and pause > 0.0:
+                for t, (position, velocity) in ((t1, at_support[Y]), (t2, at_next[Y])):
+                    knots += _paused_knots(t, position, velocity, pause, min_gap)
+                channels.append(knots)
+                continue
             elif t1 > min_gap:
                 knots.append((t1, at_support[c, 0], at_support[c, 1]))
             knots.append((t2, at_next[c, 0], at_next[c, 1]))
@@ -516,37 +567,61 @@ class QuinticWalk:
         return channels
 
     def _foot_knots(self, plan: _HalfStep) -> list:
-        """Knots of the flying foot's x, y, z and yaw channels (support frame)."""
+        """Knots of the flying foot's x, y, z, pitch and yaw channels (support frame).
+
+        Times as shares of single support after double support: the foot lifts at 0, reaches
+        ``foot_rise`` at ``foot_apex_phase`` (held for ``foot_z_pause`` around it, with the sole
+        pitched by ``foot_apex_pitch``), passes x/y beyond the landing by ``foot_overshoot_ratio``
+        of the step at ``foot_overshoot_phase`` × ``foot_put_down_phase``, and is put down at
+        ``foot_put_down_phase``, at height ``foot_put_down_z_offset``, lowered to the ground by the
+        end of the half step.  The x overshoot is that share of the step's x (the landing in the
+        support frame), the y overshoot that share of the y travel (landing − start).
+        """
         p = self.params
         last, landing, half = plan.last, plan.landing, plan.duration
         if plan.kind in (WalkState.START_MOVEMENT, WalkState.STOP_MOVEMENT):
-            return [_constant_knots(v, half) for v in (last.x, last.y, 0.0, last.theta)]
+            return [_constant_knots(v, half) for v in (last.x, last.y, 0.0, 0.0, last.theta)]
         double_support = p.double_support_ratio * half
         single_support = half - double_support
         lift = double_support > 1e-9  # hold through double support only if it has a length
         put_down = double_support + single_support * p.foot_put_down_phase
         apex = double_support + single_support * p.foot_apex_phase
         settled = put_down < half - 1e-9
+        overshoot = double_support + single_support * p.foot_put_down_phase * p.foot_overshoot_phase
+        overshoots = put_down - overshoot > 1e-9
+        # The apex instants: one, or the two ends of the z pause.
+        pause = 0.5 * p.foot_z_pause * single_support
+        apexes = [apex - pause, apex + pause] if pause > 0.0 else [apex]
 
-        def planar(start: float, end: float) -> list:
+        def planar(start: float, end: float, beyond: float | None = None) -> list:
             knots = [(0.0, start)]
             if lift:
                 knots.append((double_support, start))
+            if beyond is not None and overshoots:
+                knots.append((overshoot, beyond))
             knots.append((put_down, end))
             if settled:
                 knots.append((half, end))
             return knots
 
-        z = [(0.0, 0.0)]
-        if lift:
-            z.append((double_support, 0.0))
-        z += [(apex, p.foot_rise), (put_down, 0.0)]
-        if settled:
-            z.append((half, 0.0))
-        y = planar(last.y, landing.y)
+        def lifted(ground: float, top: float, down: float) -> list:
+            knots = [(0.0, ground)]
+            if lift:
+                knots.append((double_support, ground))
+            knots += [(t, top) for t in apexes]
+            knots.append((put_down, down))
+            if settled:
+                knots.append((half, ground))
+            return knots
+
+        ratio = p.foot_overshoot_ratio
+        z = lifted(0.0, p.foot_rise, p.foot_put_down_z_offset)
+        pitch = lifted(0.0, p.foot_apex_pitch, 0.0)
+        y = planar(last.y, landing.y, landing.y + ratio * (landing.y - last.y))
         if double_support < apex < put_down:
             y = self._swing_detour(y, plan, double_support, put_down, apex)
-        return [planar(last.x, landing.x), y, z, planar(last.theta, landing.theta)]
+        x = planar(last.x, landing.x, landing.x + ratio * landing.x)
+        return [x, y, z, pitch, planar(last.theta, landing.theta)]
 
     def _swing_detour(self, y_knots: list, plan: _HalfStep, start: float, end: float, apex: float) -> list:
         """Route the flying foot around the support foot when its straight path would cross it.

@@ -1,13 +1,32 @@
 """Walk-engine parameters (the quintic walk's configuration).
 
-Defaults are the Hamburg Bit-Bots' Webots-simulation values of 2022 (``../shared/FACTS.md``).
-Every backend may override them through the Hydra group ``walk``.
+The fields are the Hamburg Bit-Bots' quintic-walk parameters (``engine.*`` of their walk config
+files, plus the ``node.*`` rates and speed multipliers footsim uses), with their names, units and
+conventions (``../shared/FACTS.md``, "Quintic walk: conventions and units"):
+
+* ``freq`` is the full (double-step) cycle frequency; one step (half cycle) lasts
+  ``half_period = 1 / (2 freq)``; each half step starts with ``double_support_ratio`` of it in
+  double support, the rest is single support.
+* ``foot_apex_phase``, ``foot_put_down_phase``, ``foot_overshoot_phase`` and ``foot_z_pause`` are
+  shares of single support; ``trunk_phase``, ``first_step_trunk_phase`` and ``trunk_pause`` are
+  shares of a half period.
+* Angles in radians, lengths in metres; trunk offsets are in the support-sole frame.
+
+Defaults are the Bit-Bots' Webots-simulation values of 2022 for the parameters footsim's engine
+has always had, and for the others the value that leaves the motion unchanged (no apex pitch,
+no overshoot, no pauses, the first step's trunk phase = ``trunk_phase``).  Every backend may
+override them through the Hydra group ``walk``; ``conf/walk/bitbots_*.yaml`` hold the Bit-Bots'
+own files.  The kick parameters (``engine.kick_*``) are not fields: footsim's engine has no kick.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields
+
+# Fields that may be None (the others are finite numbers).
+_OPTIONAL = frozenset({"first_step_trunk_phase"})
 
 
 @dataclass(frozen=True)
@@ -18,16 +37,28 @@ class WalkParams:
     foot_rise: float = 0.0820  # flying-foot apex height [m]
     foot_apex_phase: float = 0.5  # apex time as a share of single support
     foot_put_down_phase: float = 1.0  # put-down time as a share of single support
+    foot_apex_pitch: float = 0.0  # flying-sole pitch at the apex [rad], positive = toe down
+    foot_overshoot_ratio: float = 0.0  # x/y overshoot beyond the landing, as a share of the step
+    foot_overshoot_phase: float = 1.0  # overshoot time as a share of the put-down time (1 = none)
+    foot_z_pause: float = 0.0  # share of single support the foot holds foot_rise around the apex
+    foot_put_down_z_offset: float = 0.0  # height [m] the foot reaches at put-down (then lowered)
     trunk_height: float = 0.3948  # trunk (base) height above the support sole [m]
-    trunk_pitch: float = 0.1056  # [rad]
+    trunk_pitch: float = 0.1056  # [rad], positive leans forward
     trunk_pitch_p_coef_forward: float = -0.186  # pitch added per metre of step x
     trunk_pitch_p_coef_turn: float = -0.457  # pitch added per radian of |step yaw|
     trunk_swing: float = 0.1549  # lateral trunk swing, as a share of half the foot offset
     trunk_phase: float = -0.1517  # phase shift of the trunk swing (in half steps)
+    first_step_trunk_phase: float | None = None  # trunk_phase of the start movement and start step; None = trunk_phase
+    trunk_pause: float = 0.0  # share of a half step the trunk holds its lateral apex
     trunk_x_offset: float = 0.0089  # [m]
+    trunk_x_offset_p_coef_forward: float = 0.0  # trunk x offset added per metre of step x [m/m]
+    trunk_x_offset_p_coef_turn: float = 0.0  # trunk x offset added per radian of |step yaw| [m/rad]
     trunk_y_offset: float = 0.0037  # [m]
     trunk_z_movement: float = 0.0155  # vertical trunk oscillation [m]
     first_step_swing_factor: float = 1.806  # trunk swing gain in the start step
+    # The Bit-Bots' walk-node update rate [Hz].  Validated and carried for the 3D driver; the
+    # engine itself is sampled at the backend's control_dt (QuinticWalk's argument).
+    engine_freq: float = 500.0
     # Velocity orders: a step per axis = v / (2 freq) * multiplier (then clipped to the limits).
     x_speed_multiplier: float = 1.0
     y_speed_multiplier: float = 1.0
@@ -36,31 +67,30 @@ class WalkParams:
     def __post_init__(self) -> None:
         for f in fields(self):
             value = getattr(self, f.name)
+            if value is None and f.name in _OPTIONAL:
+                continue
             if not isinstance(value, (int, float)) or not math.isfinite(value):
-                raise ValueError(f"WalkParams.{f.name} must be a finite number, got {value!r}")
+                kind = "a finite number or None" if f.name in _OPTIONAL else "a finite number"
+                raise ValueError(f"WalkParams.{f.name} must be {kind}, got {value!r}")
         checks = {
-            "freq": self.freq > 0,
-            "double_support_ratio": 0.0 <= self.double_support_ratio < 1.0,
-            "foot_distance": self.foot_distance > 0,
-            "foot_rise": self.foot_rise >= 0,
-            "foot_apex_phase": 0.0 < self.foot_apex_phase < 1.0,
-            "foot_put_down_phase": 0.0 < self.foot_put_down_phase <= 1.0,
-            "trunk_height": self.trunk_height > 0,
-            "trunk_z_movement": self.trunk_z_movement >= 0,
+            "freq": (self.freq > 0, "> 0"),
+            "double_support_ratio": (0.0 <= self.double_support_ratio < 1.0, "in [0, 1)"),
+            "foot_distance": (self.foot_distance > 0, "> 0"),
+            "foot_rise": (self.foot_rise >= 0, ">= 0"),
+            "foot_apex_phase": (0.0 < self.foot_apex_phase < 1.0, "in (0, 1)"),
+            "foot_put_down_phase": (0.0 < self.foot_put_down_phase <= 1.0, "in (0, 1]"),
+            "foot_overshoot_ratio": (0.0 <= self.foot_overshoot_ratio <= 1.0, "in [0, 1]"),
+            "foot_overshoot_phase": (0.0 < self.foot_overshoot_phase <= 1.0, "in (0, 1]"),
+            "foot_z_pause": (0.0 <= self.foot_z_pause < 1.0, "in [0, 1)"),
+            "foot_put_down_z_offset": (self.foot_put_down_z_offset >= 0, ">= 0"),
+            "trunk_height": (self.trunk_height > 0, "> 0"),
+            "trunk_pause": (0.0 <= self.trunk_pause < 1.0, "in [0, 1)"),
+            "trunk_z_movement": (self.trunk_z_movement >= 0, ">= 0"),
+            "engine_freq": (self.engine_freq > 0, "> 0"),
         }
-        ranges = {
-            "freq": "> 0",
-            "double_support_ratio": "in [0, 1)",
-            "foot_distance": "> 0",
-            "foot_rise": ">= 0",
-            "foot_apex_phase": "in (0, 1)",
-            "foot_put_down_phase": "in (0, 1]",
-            "trunk_height": "> 0",
-            "trunk_z_movement": ">= 0",
-        }
-        for name, ok in checks.items():
+        for name, (ok, valid) in checks.items():
             if not ok:
-                raise ValueError(f"WalkParams.{name} must be {ranges[name]}, got {getattr(self, name)!r}")
+                raise ValueError(f"WalkParams.{name} must be {valid}, got {getattr(self, name)!r}")
 
     @property
     def double_step_duration(self) -> float:
@@ -71,15 +101,21 @@ class WalkParams:
     def half_period(self) -> float:
         return 0.5 / self.freq
 
+    @property
+    def start_trunk_phase(self) -> float:
+        """The trunk phase of the start movement and the start step."""
+        return self.trunk_phase if self.first_step_trunk_phase is None else self.first_step_trunk_phase
+
     @classmethod
-    def from_mapping(cls, mapping) -> WalkParams:
+    def from_mapping(cls, mapping: Mapping) -> WalkParams:
         """Build from a dict / DictConfig, naming any unknown key."""
         known = {f.name for f in fields(cls)}
         data = dict(mapping)
         unknown = sorted(set(data) - known)
         if unknown:
             raise ValueError(f"unknown walk parameter(s) {unknown}; valid: {sorted(known)}")
-        return cls(**{k: float(v) for k, v in data.items()})
+        values: dict = {k: None if v is None and k in _OPTIONAL else float(v) for k, v in data.items()}
+        return cls(**values)
 
     def to_dict(self) -> dict:
         return asdict(self)
