@@ -253,7 +253,12 @@ def facts_table():
 
 
 def preset(name: str) -> dict:
-    return OmegaConf.to_container(OmegaConf.load(REPO / "conf" / "walk" / f"{name}.yaml"))
+    """The preset file's own values, read with OmegaConf (not footsim's composer); its Hydra
+    ``defaults`` list names the schema and carries no value."""
+    values = OmegaConf.to_container(OmegaConf.load(REPO / "conf" / "walk" / f"{name}.yaml"))
+    assert isinstance(values, dict)
+    values.pop("defaults", None)
+    return values
 
 
 @pytest.mark.parametrize("name", sorted(PRESETS))
