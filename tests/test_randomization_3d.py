@@ -232,18 +232,17 @@ def test_terrain_slope_tilts_the_floor_normal_by_the_value(env):
 def _recorded_targets(b, values):
     _fresh(b, values)
     sent = []
-    original = b.sim.set_leg_targets
-    b.sim.set_leg_targets = lambda t: (sent.append(np.array(t)), original(t))
-    b.compiled_ticks = False  # the compiled control tick writes ctrl without set_leg_targets
+    original = b.sim.advance  # each tick's commanded targets, read from the state contract before its physics
+    b.sim.advance = lambda n: (sent.append(b.sim.state.last_targets()), original(n))
     try:
         b.execute(DoubleStep.from_action(np.array([0.3, 0, 0, 0.3, 0, 0]), b.robot.step_limits))
     finally:
-        del b.sim.set_leg_targets, b.compiled_ticks
+        del b.sim.advance
     return np.array(sent)
 
 
 def test_control_latency_delays_the_joint_targets_by_the_rounded_ticks(env):
-    from footsim.backends.physics3d import TrunkStabilizer
+    from footsim.backends.control import TrunkStabilizer
 
     b = env.backend
     stabilizer, b.stabilizer = b.stabilizer, TrunkStabilizer()  # open loop: targets independent of the state
@@ -349,7 +348,7 @@ def test_a_sim_without_a_term_makes_the_driver_refuse_it():
     from footsim.backends.physics3d import DRIVER_TERMS, PhysicsSim
 
     class Bare(PhysicsSim):
-        build = set_obstacles = reset_robot = set_leg_targets = advance = base_pose = obstacle_contact = None
+        build = set_obstacles = reset_robot = advance = base_pose = obstacle_contact = None
 
     assert Bare.capabilities == frozenset()
     with pytest.raises(ValueError, match="cannot apply"):

@@ -87,6 +87,7 @@ from dm_control import mjcf  # a missing package: backend_class names the extra 
 from dm_control.rl.control import PhysicsError
 
 from footsim.backends.base import RenderOverlay
+from footsim.backends.control import ServoFeedForward
 from footsim.backends.mujoco_backend import (
     _BALL_RGBA,
     _OBSTACLE_BIT,
@@ -98,18 +99,16 @@ from footsim.backends.mujoco_backend import (
     N_CYLINDERS,
     OBSTACLE_HEIGHT,
     MujocoModelOptions,
-    ServoFeedForward,
     draw_overlay,
     fatal_warning_ids,
     fatal_warning_message,
     foot_contact,
     levelling_quat,
     obstacle_geometry,
-    quat_fused_roll_pitch,
     require_rendering,
 )
 from footsim.backends.mujoco_randomization import MujocoRandomization
-from footsim.backends.physics3d import Physics3DBackend, PhysicsSim, quat_to_matrix
+from footsim.backends.physics3d import Physics3DBackend, PhysicsSim, SimState, quat_to_matrix
 from footsim.robots.mjcf import FREE_JOINT, build_mjcf, sole_site
 from footsim.robots.spec import RobotSpec
 from footsim.scene import Scene
@@ -201,6 +200,16 @@ class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # rand
         self._obstacle_mask = np.zeros(physics.model.ngeom, dtype=bool)
         self._obstacle_mask[self._pool_ids] = True
         self._warning_ids = fatal_warning_ids()
+        self.state = SimState(
+            quat=self._root_q[3:7],
+            position=self._root_q[:3],
+            command=self._ctrl,
+            leg_ids=self._leg_ids,
+            finite=(self._qpos, self._qvel),
+            warnings=self._warnings,
+            warning_ids=self._warning_ids,
+            feed_forward=None if self._feed_forward is None else self._feed_forward.state,
+        )
         self._park_all()
         physics.forward()
 
@@ -258,6 +267,7 @@ class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # rand
     def reset_robot(self, base_position: np.ndarray, joint_positions: dict[str, float]) -> None:
         physics = self.physics
         self._error = None
+        self.state.fault[0] = 0
         names = [n for n in joint_positions if n not in self._rigid_joints]  # welded ones stay put
         angles = np.array([joint_positions[n] for n in names], dtype=float)
         root = np.concatenate([np.asarray(base_position, dtype=float), [1.0, 0.0, 0.0, 0.0]])
@@ -277,19 +287,6 @@ class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # rand
         self._root.qpos = root
         physics.forward()
 
-    def set_leg_targets(self, targets: np.ndarray) -> None:
-        ff = self._feed_forward  # = self._legs.ctrl = targets, below without the Binding overhead
-        self._ctrl[self._leg_ids] = targets if ff is None else ff.ctrl(targets)
-
-    def control_arrays(self):
-        ff = self._feed_forward
-        return self._root_q[3:7], self._ctrl, self._leg_ids, None if ff is None else ff.state
-
-    def status_arrays(self):
-        if self._error is not None:  # a PhysicsError: the full check reports it
-            return None
-        return self._root_q, self._qpos, self._qvel, self._warnings, self._warning_ids
-
     def advance(self, n_steps: int) -> None:
         if self._error is not None:
             return  # the state is no longer valid; the driver ends the episode at its next check
@@ -297,13 +294,11 @@ class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # rand
             self.physics.step(n_steps)
         except PhysicsError as err:
             self._error = f"dm_control PhysicsError: {err}"
+            self.state.fault[0] = 1
 
     def base_pose(self) -> tuple[np.ndarray, np.ndarray]:
         q = self._root_q.copy()  # free joint: position, unit quaternion (w, x, y, z)
         return q[:3], quat_to_matrix(q[3:7])
-
-    def base_tilt(self) -> tuple[float, float]:
-        return quat_fused_roll_pitch(self._root_q[3:7])
 
     def obstacle_contact(self) -> bool:
         data = self.physics.data

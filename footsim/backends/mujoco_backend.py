@@ -34,9 +34,9 @@ def require_rendering() -> None:
 
 
 from footsim.backends.base import RenderOverlay
+from footsim.backends.control import ServoFeedForward, all_finite
 from footsim.backends.mujoco_randomization import MujocoRandomization
-from footsim.backends.physics3d import Physics3DBackend, PhysicsSim, levelling_rotation
-from footsim.kernels3d import all_finite
+from footsim.backends.physics3d import Physics3DBackend, PhysicsSim, SimState, levelling_rotation
 from footsim.robots.mjcf import CONTACT_FRICTION, FREE_JOINT, build_mjcf, import_mujoco
 from footsim.robots.spec import RobotSpec
 from footsim.scene import Scene
@@ -83,37 +83,6 @@ def check_model_options(
     )
 
 
-class ServoFeedForward:
-    """The servo D term on the tracking error, for position actuators with velocity gain ``kv``.
-
-    MuJoCo's position actuator gives ``kp (ctrl - q) - kv qdot``; feeding the target velocity
-    forward as ``ctrl = q_t + kv/kp * qdot_t`` makes it ``kp (q_t - q) + kv (qdot_t - qdot)``
-    (a Dynamixel's PID, not a speed-capping damper).  ``qdot_t`` is the backward difference of
-    consecutive targets, which arrive every ``control_dt``.
-    """
-
-    def __init__(self, servo_kv: float, kp: np.ndarray, control_dt: float):
-        if not (math.isfinite(servo_kv) and servo_kv >= 0):
-            raise ValueError(f"backend.servo_kv must be >= 0, got {servo_kv!r}")
-        if not (math.isfinite(control_dt) and control_dt > 0):
-            raise ValueError(f"control_dt must be > 0, got {control_dt!r}")
-        gain = float(servo_kv) / np.asarray(kp, dtype=float) / float(control_dt)
-        # One (2, n) array [gain, previous targets]: the driver's compiled control tick
-        # (footsim.kernels3d.control_tick) reads and updates it in place, like ctrl() below.
-        self.state = np.zeros((2, len(gain)))
-        self.state[0] = gain
-        self.gain, self.previous = self.state  # views
-
-    def reset(self, targets: np.ndarray) -> None:
-        """Start from rest at ``targets`` (no feed-forward until they change)."""
-        self.previous[:] = targets
-
-    def ctrl(self, targets: np.ndarray) -> np.ndarray:
-        out = targets + self.gain * (targets - self.previous)
-        self.previous[:] = targets
-        return out
-
-
 def _check_non_negative(key: str, value: float | None, allow_none: bool = False) -> None:
     if value is None and allow_none:
         return
@@ -137,17 +106,6 @@ def foot_contact(
     if rolling_friction is not None:
         friction[2] = rolling_friction
     return (4 if rolling_friction is None else 6), [float(f) for f in friction]
-
-
-def quat_fused_roll_pitch(quat) -> tuple[float, float]:
-    """Fused (roll, pitch) of a unit quaternion (w, x, y, z): the rotation matrix's R[2,1] and
-    -R[2,0] without building it (``physics3d.fused_roll_pitch``)."""
-    w, x, y, z = quat.tolist()
-    s_pitch, s_roll = 2.0 * (w * y - x * z), 2.0 * (y * z + w * x)
-    return (
-        math.asin(-1.0 if s_roll < -1.0 else 1.0 if s_roll > 1.0 else s_roll),
-        math.asin(-1.0 if s_pitch < -1.0 else 1.0 if s_pitch > 1.0 else s_pitch),
-    )
 
 
 def obstacle_geometry(x: float, y: float, r: float, ball: bool):
@@ -356,12 +314,16 @@ class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomi
         self._sole_sites = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, n) for n in ("l_sole", "r_sole")]
         self._warning_ids = fatal_warning_ids()
         self._warnings = d.warning.number  # a view: d.warning builds a new wrapper per access
-        self._status_arrays = (
-            d.qpos[self._free_q : self._free_q + 7],
-            d.qpos,
-            d.qvel,
-            self._warnings,
-            self._warning_ids,
+        q = self._free_q
+        self.state = SimState(
+            quat=d.qpos[q + 3 : q + 7],
+            position=d.qpos[q : q + 3],
+            command=d.ctrl,
+            leg_ids=self._leg_ctrl,
+            finite=(d.qpos, d.qvel),
+            warnings=self._warnings,
+            warning_ids=self._warning_ids,
+            feed_forward=None if self._feed_forward is None else self._feed_forward.state,
         )
         self._rot = np.zeros(9)
         self._step = mujoco.mj_step
@@ -425,17 +387,6 @@ class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomi
         sid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_SITE, site)
         return float(self.data.site_xpos[sid, 2])  # the sole site is on the bottom face
 
-    def set_leg_targets(self, targets: np.ndarray) -> None:
-        ff = self._feed_forward
-        self.data.ctrl[self._leg_ctrl] = targets if ff is None else ff.ctrl(targets)
-
-    def control_arrays(self):
-        q, ff = self._free_q, self._feed_forward
-        return self.data.qpos[q + 3 : q + 7], self.data.ctrl, self._leg_ctrl, None if ff is None else ff.state
-
-    def status_arrays(self):
-        return self._status_arrays
-
     def advance(self, n_steps: int) -> None:
         self._step(self.model, self.data, n_steps)
 
@@ -443,9 +394,6 @@ class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomi
         q = self.data.qpos
         mujoco.mju_quat2Mat(self._rot, q[self._free_q + 3 : self._free_q + 7])
         return q[self._free_q : self._free_q + 3].copy(), self._rot.reshape(3, 3).copy()
-
-    def base_tilt(self) -> tuple[float, float]:
-        return quat_fused_roll_pitch(self.data.qpos[self._free_q + 3 : self._free_q + 7])
 
     def obstacle_contact(self) -> bool:
         d = self.data
@@ -486,7 +434,7 @@ class MujocoSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomi
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
-        self.model = self.data = self._warnings = self._status_arrays = None
+        self.model = self.data = self._warnings = None
 
 
 class MujocoBackend(Physics3DBackend):

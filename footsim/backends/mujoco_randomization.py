@@ -35,20 +35,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: The physics terms both MuJoCo-based sims apply.
-MUJOCO_TERMS = frozenset(
-    {
-        "floor_friction",
-        "foot_friction",
-        "link_mass_scale",
-        "torso_com_offset_x",
-        "torso_com_offset_y",
-        "actuator_kp_scale",
-        "torque_limit_scale",
-        "joint_damping_scale",
-        "terrain_slope",
-    }
-)
+from footsim.backends.physics3d import PHYSICS_TERMS
+
 _FRICTION_TERMS = ("floor_friction", "foot_friction")
 _MASS_TERMS = ("link_mass_scale", "torso_com_offset_x", "torso_com_offset_y")
 
@@ -196,7 +184,7 @@ class MujocoRandomization:
     time it is used on a compiled model.  The sim provides ``self.robot`` and either
     ``self.model`` / ``self.data`` (mujoco) or ``self.physics`` (dm_control)."""
 
-    capabilities = MUJOCO_TERMS
+    capabilities = PHYSICS_TERMS  # all of them
 
     def _mj(self):
         physics = getattr(self, "physics", None)
@@ -241,7 +229,7 @@ class MujocoRandomization:
     def apply_physics_randomization(self, values: dict[str, float]) -> None:
         from footsim.robots.mjcf import import_mujoco
 
-        unknown = sorted(set(values) - MUJOCO_TERMS - {"terrain_slope_direction"})
+        unknown = sorted(set(values) - self.capabilities - {"terrain_slope_direction"})
         if unknown:
             raise ValueError(f"{type(self).__name__} cannot apply randomization terms {unknown}")
         nominal = self._mj_nominal()

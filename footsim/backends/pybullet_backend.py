@@ -46,7 +46,6 @@ the same reason.)
 from __future__ import annotations
 
 import contextlib
-import functools
 import math
 import os
 import sys
@@ -59,9 +58,8 @@ import pybullet as p
 from scipy.spatial.transform import Rotation
 
 from footsim.backends.base import RenderOverlay
-from footsim.backends.physics3d import Physics3DBackend, PhysicsSim, levelling_rotation
-from footsim.kernels2d import typed_entry
-from footsim.kernels3d import bullet_base_ok, bullet_control_state, bullet_control_tick
+from footsim.backends.control import ServoFeedForward
+from footsim.backends.physics3d import PHYSICS_TERMS, Physics3DBackend, PhysicsSim, SimState, levelling_rotation
 from footsim.robots.spec import RobotSpec
 from footsim.robots.urdf import build_urdf
 from footsim.scene import Scene
@@ -148,37 +146,10 @@ def _release(client: int, path: str | None, key: tuple | None, world: dict | Non
             pass
 
 
-#: Physics randomization terms the PyBullet sim applies (see ``apply_physics_randomization``).
-PYBULLET_TERMS = frozenset(
-    {
-        "floor_friction",
-        "foot_friction",
-        "link_mass_scale",
-        "torso_com_offset_x",
-        "torso_com_offset_y",
-        "actuator_kp_scale",
-        "torque_limit_scale",
-        "joint_damping_scale",
-        "terrain_slope",
-    }
-)
-
-
-@functools.cache
-def _compiled_per_tick():
-    """``bullet_control_tick`` and ``bullet_base_ok`` for the argument types they get here (Bullet's
-    tuples of floats, float64 C arrays, floats), without numba's per-call type resolution."""
-    v3, quat, tick_state = (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0), np.zeros((5, 14))
-    return (
-        typed_entry(bullet_control_tick, tick_state, 0, quat),
-        typed_entry(bullet_base_ok, v3, quat, v3, v3, np.zeros(3), np.eye(3), 1.0, 1.0, np.zeros(2)),
-    )
-
-
 class PybulletSim(PhysicsSim):
     """One DIRECT-mode Bullet world holding the robot, the floor and the scene's obstacles."""
 
-    capabilities = PYBULLET_TERMS
+    capabilities = PHYSICS_TERMS  # all of them (see apply_physics_randomization)
 
     def __init__(
         self,
@@ -344,7 +315,6 @@ class PybulletSim(PhysicsSim):
         self._com_pos = np.array(dyn[3])
         self._com_orn = tuple(dyn[4])
         self._com_rot = np.array(p.getMatrixFromQuaternion(self._com_orn)).reshape(3, 3)
-        self._com_rows = (tuple(self._com_rot[0].tolist()), tuple(self._com_rot[1].tolist()))
         self.obstacle_ids: list[int] = []
         self._free: dict[str, list[int]] = {}  # parked obstacle bodies per kind ("cylinder", "ball")
         self._pool_kind: dict[int, str] = {}
@@ -406,6 +376,29 @@ class PybulletSim(PhysicsSim):
         self._scales = {"kp": 1.0, "damping": 1.0, "torque": 1.0}
         self.leg_vgains = [self.velocity_gain] * len(LEG_JOINT_NAMES)
         self.other_names = [n for n in self.joint_names if n not in LEG_JOINT_NAMES]
+        # The state contract: Bullet's base state (position, quaternion x y z w, linear and angular
+        # velocity of the inertial frame) read into one array; the leg commands sent from another.
+        self._base = np.zeros(13)
+        self._command = np.zeros(len(LEG_JOINT_NAMES))
+        self._feed_forward = None
+        if self.motor == "servo":
+            dt = self.control_dt if self.control_dt is not None else self.physics_dt
+            self._feed_forward = ServoFeedForward(self.servo_kv, np.ones(len(LEG_JOINT_NAMES)), dt)
+        self.state = SimState(
+            quat=self._base[3:7],
+            position=self._base[0:3],
+            command=self._command,
+            leg_ids=np.arange(len(LEG_JOINT_NAMES), dtype=np.intp),
+            finite=(self._base,),
+            live=False,
+            w_last=True,
+            frame=self._com_rot,
+            offset=self._com_pos,
+            matrix_normalizes=True,
+            velocity=self._base[7:13],
+            max_speed=self.max_base_speed,
+            feed_forward=None if self._feed_forward is None else self._feed_forward.state,
+        )
         if self.motor == "servo":
             # Torque mode: Bullet's leg motors become the joints' dry friction (a velocity motor to
             # 0 with the servo's frictionloss as its force, as MuJoCo's frictionloss); the servo law
@@ -420,8 +413,6 @@ class PybulletSim(PhysicsSim):
                 physicsClientId=c,
             )
             self._servo_gains()
-            self._ctrl = [0.0] * len(LEG_JOINT_NAMES)
-            self._previous = [0.0] * len(LEG_JOINT_NAMES)
 
     def _servo_gains(self) -> None:
         """Per leg joint (kp, kv, damping, effort) of the servo law, with the randomization scales."""
@@ -436,7 +427,7 @@ class PybulletSim(PhysicsSim):
             for j in map(self.spec.joint, LEG_JOINT_NAMES)
         ]
         dt = self.control_dt if self.control_dt is not None else self.physics_dt
-        self._feed = [kv / kp / dt for kp, kv, _, _ in self._servo]  # ctrl = q_t + kv/kp · q̇_t
+        self._feed_forward.gain[:] = [kv / kp / dt for kp, kv, _, _ in self._servo]  # the servo's kv / kp
 
     def set_obstacles(self, scene: Scene) -> None:
         """Place the scene's cylinders and ball.
@@ -530,8 +521,8 @@ class PybulletSim(PhysicsSim):
                 body, self.joint_index[name], float(joint_positions.get(name, 0.0)), 0.0, physicsClientId=c
             )
         if self.motor == "servo":  # target velocities restart from rest at these angles
-            self._previous = [float(joint_positions.get(n, 0.0)) for n in LEG_JOINT_NAMES]
-            self._ctrl = list(self._previous)
+            self._feed_forward.reset([float(joint_positions.get(n, 0.0)) for n in LEG_JOINT_NAMES])
+            self._command[:] = self._feed_forward.previous
         others = [self.joint_index[n] for n in self.other_names]
         if others:
             p.setJointMotorControlArray(
@@ -559,70 +550,33 @@ class PybulletSim(PhysicsSim):
         lowest = min(float((rotation @ t[:3, 3])[2]) for t in soles)
         return np.array([base_position[0], base_position[1], -lowest]), rotation
 
-    def set_leg_targets(self, targets: np.ndarray) -> None:
+    def read_state(self, velocity: bool = False) -> None:
+        base, c, body = self._base, self.client, self.robot_id
+        base[0:3], base[3:7] = p.getBasePositionAndOrientation(body, c)  # positional: keywords cost µs
+        if velocity:
+            base[7:10], base[10:13] = p.getBaseVelocity(body, c)
+
+    def write_command(self) -> None:
+        """Position motors: the command as their targets.  Servo mode: nothing to send (the servo
+        law turns the command into torques every physics step, ``_servo_torques``)."""
         if self.motor == "servo":
-            # MuJoCo's position actuator with kv (mujoco_backend.ServoFeedForward): the target
-            # velocity (backward difference of targets) is fed forward through ctrl.
-            new = targets.tolist()
-            self._ctrl = [t + f * (t - old) for t, old, f in zip(new, self._previous, self._feed)]
-            self._previous = new
             return
         p.setJointMotorControlArray(
             self.robot_id,
             self.leg_indices,
             p.POSITION_CONTROL,
-            targetPositions=targets.tolist(),
+            targetPositions=self._command.tolist(),
             forces=self.leg_forces,
             positionGains=self.leg_gains,
             velocityGains=self.leg_vgains,
             physicsClientId=self.client,
         )
 
-    def stabilized_ticks(self, targets: np.ndarray, trunk: np.ndarray, gains: np.ndarray, substeps: int):
-        """Stabilized control ticks in one Python loop: per tick a quaternion read, one compiled
-        call (``kernels3d.bullet_control_tick``: ``base_tilt`` + the correction, the same float
-        operations), the motor command and the physics steps.  About half the Python calls of
-        control + ``advance``, each of which costs µs because ``stepSimulation`` leaves the
-        caches cold.  Position motors only (servo mode: the verbs)."""
-        if self.motor != "position":
-            return None
-        read, command, mode, step = (
-            p.getBasePositionAndOrientation,
-            p.setJointMotorControlArray,
-            p.POSITION_CONTROL,
-            p.stepSimulation,
-        )
-        body, c, legs = self.robot_id, self.client, self.leg_indices
-        forces, position_gains, velocity_gains = self.leg_forces, self.leg_gains, self.leg_vgains
-        state = bullet_control_state(targets, trunk, gains, np.array(self._com_rows))
-        control_tick = _compiled_per_tick()[0]
-        physics_steps = range(substeps)
-        wrench = self._apply_wrench if self._wrench else None  # a COM offset (pushes take the verbs)
-
-        def run(k0: int, k1: int) -> None:
-            for k in range(k0, k1):
-                command(
-                    body,
-                    legs,
-                    mode,
-                    targetPositions=control_tick(state, k, read(body, c)[1]),
-                    forces=forces,
-                    positionGains=position_gains,
-                    velocityGains=velocity_gains,
-                    physicsClientId=c,
-                )
-                for _ in physics_steps:
-                    if wrench is not None:
-                        wrench()
-                    step(c)
-
-        return run
-
     def _servo_torques(self) -> list[float]:
         """MuJoCo's actuator law: clip(kp (ctrl − q) − kv q̇, ±effort) − damping q̇ per leg joint."""
         states = p.getJointStates(self.robot_id, self.leg_indices, physicsClientId=self.client)
         torques = []
-        for (q, qd, _, _), ctrl, (kp, kv, damping, effort) in zip(states, self._ctrl, self._servo):
+        for (q, qd, _, _), ctrl, (kp, kv, damping, effort) in zip(states, self._command.tolist(), self._servo):
             force = kp * (ctrl - q) - kv * qd
             torques.append(min(effort, max(-effort, force)) - damping * qd)
         return torques
@@ -676,7 +630,7 @@ class PybulletSim(PhysicsSim):
         * ``terrain_slope``: the floor plane is tilted about the origin toward
           ``terrain_slope_direction``.
         """
-        unknown = sorted(set(values) - PYBULLET_TERMS - {"terrain_slope_direction"})
+        unknown = sorted(set(values) - self.capabilities - {"terrain_slope_direction"})
         if unknown:
             raise ValueError(f"PybulletSim cannot apply randomization terms {unknown}")
         c, body = self.client, self.robot_id
@@ -746,15 +700,6 @@ class PybulletSim(PhysicsSim):
         rot = np.array(p.getMatrixFromQuaternion(orn)).reshape(3, 3) @ self._com_rot.T  # link frame
         return np.asarray(pos) - rot @ self._com_pos, rot
 
-    def base_tilt(self) -> tuple[float, float]:
-        """Fused (roll, pitch) of the link frame from the base quaternion, without building the
-        matrices (every control tick with the stabilizer on: ~3 µs instead of ~14 µs)."""
-        x, y, z, w = p.getBasePositionAndOrientation(self.robot_id, physicsClientId=self.client)[1]
-        r0, r1, r2 = 2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)  # row 2 of R_com
-        (a0, a1, a2), (b0, b1, b2) = self._com_rows  # link frame: R = R_com @ com_rot^T
-        s_pitch, s_roll = -(r0 * a0 + r1 * a1 + r2 * a2), r0 * b0 + r1 * b1 + r2 * b2
-        return math.asin(max(-1.0, min(1.0, s_roll))), math.asin(max(-1.0, min(1.0, s_pitch)))
-
     def joint_positions(self) -> dict[str, float]:
         states = p.getJointStates(
             self.robot_id, [self.joint_index[n] for n in self.joint_names], physicsClientId=self.client
@@ -779,24 +724,6 @@ class PybulletSim(PhysicsSim):
         if math.hypot(*lin) > self.max_base_speed or math.hypot(*ang) > 6 * self.max_base_speed:
             return "exploding base velocity"
         return None
-
-    def status_ok(self, out_of_bounds: float, tilt: np.ndarray) -> bool:
-        """The driver's periodic check in two Bullet reads and one compiled call (the full check,
-        ``sim_error`` + ``base_pose``, is ~40-75 µs of small numpy; 12 times a double step)."""
-        c, body = self.client, self.robot_id
-        position, orientation = p.getBasePositionAndOrientation(body, c)
-        linear, angular = p.getBaseVelocity(body, c)
-        return _compiled_per_tick()[1](
-            position,
-            orientation,
-            linear,
-            angular,
-            self._com_pos,
-            self._com_rot,
-            float(out_of_bounds),
-            self.max_base_speed,
-            tilt,
-        )
 
     def _healthy(self) -> bool:
         """No sim error and the base within 50 m of the origin (else the world is rebuilt)."""
@@ -854,7 +781,6 @@ class PybulletSim(PhysicsSim):
         "_com_pos",
         "_com_orn",
         "_com_rot",
-        "_com_rows",
         "obstacle_ids",
         "_free",
         "_pool_kind",
