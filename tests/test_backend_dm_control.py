@@ -17,7 +17,7 @@ from gymnasium.utils.env_checker import check_env as gym_check_env  # noqa: E402
 from stable_baselines3.common.env_checker import check_env as sb3_check_env  # noqa: E402
 
 import footsim  # noqa: E402,F401  (registers the env)
-from footsim.backends.dm_control_backend import N_CYLINDERS, DmControlBackend  # noqa: E402
+from footsim.backends.mujoco_family.dm_control_sim import N_CYLINDERS, DmControlBackend  # noqa: E402
 from footsim.env import FootstepEnv  # noqa: E402
 from footsim.geometry import Pose2D  # noqa: E402
 from footsim.scene import Obstacle, Scene  # noqa: E402
@@ -152,7 +152,7 @@ def test_joint_name_mapping(backend):
 
 def test_model_options_match_the_mujoco_backend(backend):
     """Same engine, same options: the compiled models agree (XML rounding aside)."""
-    from footsim.backends.mujoco_backend import MujocoBackend
+    from footsim.backends.mujoco_family.mujoco_sim import MujocoBackend
     from footsim.config import load_preset
 
     cfg = load_preset("backend", "dm_control")

@@ -14,7 +14,7 @@ from gymnasium.utils.env_checker import check_env as gym_check_env  # noqa: E402
 from stable_baselines3.common.env_checker import check_env as sb3_check_env  # noqa: E402
 
 import footsim  # noqa: E402,F401  (registers the env)
-from footsim.backends.mujoco_backend import N_CYLINDERS, MujocoBackend  # noqa: E402
+from footsim.backends.mujoco_family.mujoco_sim import N_CYLINDERS, MujocoBackend  # noqa: E402
 from footsim.env import FootstepEnv  # noqa: E402
 from footsim.geometry import Pose2D  # noqa: E402
 from footsim.scene import Obstacle, Scene  # noqa: E402

@@ -118,6 +118,25 @@ class SimState:
     fault: np.ndarray = field(default_factory=lambda: np.zeros(1, dtype=np.int8))  #: [0] ≠ 0: the sim failed
     feed_forward: np.ndarray | None = None  #: the servo feed-forward's (2, 12) [gain, previous targets]
 
+    def check_args(self, out_of_bounds: float, tilt: np.ndarray) -> tuple:
+        """The arguments of ``control.state_ok`` for this state (``tilt``: (2,) receives the tilt)."""
+        return (
+            self.fault,
+            self.warnings,
+            self.warning_ids,
+            self.finite,
+            self.velocity,
+            self.max_speed,
+            self.position,
+            self.quat,
+            self.w_last,
+            self.matrix_normalizes,
+            self.frame,
+            self.offset,
+            float(out_of_bounds),
+            tilt,
+        )
+
     def last_targets(self) -> np.ndarray:
         """The leg targets of the last command, before the servo feed-forward (a copy)."""
         if self.feed_forward is not None:
@@ -545,22 +564,7 @@ class Physics3DBackend(Backend):
         s = self.sim.state
         if not s.live:
             self.sim.read_state(velocity=True)
-        args = (
-            s.fault,
-            s.warnings,
-            s.warning_ids,
-            s.finite,
-            s.velocity,
-            s.max_speed,
-            s.position,
-            s.quat,
-            s.w_last,
-            s.matrix_normalizes,
-            s.frame,
-            s.offset,
-            self.out_of_bounds,
-            self._tilt_buffer,
-        )
+        args = s.check_args(self.out_of_bounds, self._tilt_buffer)
         if self._typed(state_ok, args)(*args):
             return None, self._record_tilt(float(self._tilt_buffer[0]), float(self._tilt_buffer[1]))
         return self._full_status()

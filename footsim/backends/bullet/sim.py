@@ -1,6 +1,7 @@
 """PyBullet backend: the physics verbs of the shared 3D driver on a DIRECT-mode Bullet client.
 
-Model.  The URDF comes from the robot spec (``footsim.robots.urdf.urdf_xml``), written once per
+Model.  The URDF comes from the robot spec (``footsim.robots.urdf.urdf_xml``, the upper body welded
+with ``rigid_upper_body``), written once per
 backend to a temporary file (removed on ``close``) and loaded with ``URDF_USE_INERTIA_FROM_FILE``
 (Bullet would otherwise recompute inertias from the collision shapes) and
 ``URDF_USE_SELF_COLLISION``.  Self-collision is then restricted with collision groups to what the
@@ -51,17 +52,17 @@ import os
 import sys
 import tempfile
 import weakref
-import xml.etree.ElementTree as ET
 
 import numpy as np
 import pybullet as p
 from scipy.spatial.transform import Rotation
 
 from footsim.backends.base import RenderOverlay
+from footsim.backends.bullet import world_pool
 from footsim.backends.control import ServoFeedForward
 from footsim.backends.physics3d import PHYSICS_TERMS, Physics3DBackend, PhysicsSim, SimState, levelling_rotation
 from footsim.robots.spec import RobotSpec
-from footsim.robots.urdf import build_urdf
+from footsim.robots.urdf import urdf_xml
 from footsim.scene import Scene
 from footsim.walk.ik import LEG_JOINT_NAMES
 
@@ -88,62 +89,9 @@ def _quiet():
         os.close(devnull)
 
 
-def _rpy(rotation: np.ndarray) -> tuple[float, float, float]:
-    """URDF roll-pitch-yaw of a rotation matrix (R = Rz(y) Ry(p) Rx(r))."""
-    pitch = math.asin(max(-1.0, min(1.0, -float(rotation[2, 0]))))
-    return (math.atan2(rotation[2, 1], rotation[2, 2]), pitch, math.atan2(rotation[1, 0], rotation[0, 0]))
-
-
 def _quat_xyzw(rotation: np.ndarray) -> tuple[float, float, float, float]:
     """Bullet's (x, y, z, w) quaternion of a rotation matrix (scipy's convention is the same)."""
     return tuple(float(v) for v in Rotation.from_matrix(rotation).as_quat())
-
-
-def model_urdf(spec: RobotSpec, rigid_upper_body: bool) -> str:
-    """The spec's URDF; with ``rigid_upper_body`` the arm and head joints become fixed joints at
-    the walk-ready angles (folded into the joint origin), so Bullet merges them into the torso."""
-    robot = build_urdf(spec)
-    if rigid_upper_body:
-        upper_body = set(spec.upper_body_joint_names)
-        for element in robot.findall("joint"):
-            name = element.get("name")
-            if element.get("type") != "revolute" or name not in upper_body:
-                continue
-            rotation = spec.walk_ready_rotation(name)
-            element.set("type", "fixed")
-            for tag in ("axis", "limit", "dynamics"):
-                child = element.find(tag)
-                if child is not None:
-                    element.remove(child)
-            element.find("origin").set("rpy", " ".join(f"{v:.9g}" for v in _rpy(rotation)))
-    ET.indent(robot)
-    return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
-
-
-#: Idle built worlds (a DIRECT client with floor and robot loaded), keyed by the model.  Bullet
-#: keeps ~50-70 kB per ``loadURDF`` even after ``resetSimulation`` or ``disconnect``, so 1000
-#: create/close cycles would grow the process by ~70 MB; ``close`` parks its world here instead
-#: and the next backend of the same model reuses it, so memory is bounded by the number of
-#: backends open at once.  Beyond ``_MAX_IDLE`` idle worlds, ``close`` disconnects.
-_IDLE_WORLDS: dict[tuple, list[dict]] = {}
-_MAX_IDLE = 4
-
-
-def _release(client: int, path: str | None, key: tuple | None, world: dict | None) -> None:
-    try:
-        if p.isConnected(client):
-            idle = _IDLE_WORLDS.setdefault(key, []) if key is not None and world is not None else None
-            if idle is not None and sum(map(len, _IDLE_WORLDS.values())) < _MAX_IDLE:
-                idle.append(world)
-            else:
-                p.disconnect(client)
-    except Exception:  # pragma: no cover - interpreter shutdown
-        pass
-    if path:
-        try:
-            os.unlink(path)
-        except OSError:
-            pass
 
 
 class PybulletSim(PhysicsSim):
@@ -234,7 +182,7 @@ class PybulletSim(PhysicsSim):
     # -- world ----------------------------------------------------------------------------
     def build(self, robot: RobotSpec, physics_dt: float) -> None:
         self.spec, self.physics_dt = robot, float(physics_dt)
-        text = model_urdf(robot, self.rigid_upper_body)
+        text = urdf_xml(robot, self.rigid_upper_body)
         self._key = (text, self.self_collision, self.armature_scale)
         # Motor gains per joint (see the module docstring for the mapping).
         self._gain = {
@@ -245,18 +193,14 @@ class PybulletSim(PhysicsSim):
         fd, self._urdf_path = tempfile.mkstemp(prefix=f"footsim_{robot.name}_", suffix=".urdf")
         with os.fdopen(fd, "w") as f:
             f.write(text)
-        idle = _IDLE_WORLDS.get(self._key)
-        world = None
-        while idle and world is None:
-            candidate = idle.pop()
-            world = candidate if p.isConnected(candidate["client"]) else None
+        world = world_pool.take(self._key)
         if world is not None:  # reuse a parked world of the same model
             self.__dict__.update(world)
         else:
             self.client = p.connect(p.DIRECT)
             if self.client < 0:  # pragma: no cover
                 raise RuntimeError("pybullet: could not connect a DIRECT client")
-        self._finalizer = weakref.finalize(self, _release, self.client, self._urdf_path, None, None)
+        self._finalizer = weakref.finalize(self, world_pool.release, self.client, self._urdf_path, None, None)
         if world is None:
             self._build_world()
         self._configure()
@@ -790,7 +734,7 @@ class PybulletSim(PhysicsSim):
     )
 
     def close(self) -> None:
-        """Park the world for reuse (see ``_IDLE_WORLDS``) or disconnect; remove the URDF file."""
+        """Park the world for reuse (``world_pool``) or disconnect; remove the URDF file."""
         if self._finalizer is None or not self._finalizer.alive:
             return
         self._finalizer.detach()
@@ -805,7 +749,7 @@ class PybulletSim(PhysicsSim):
                 world = {k: getattr(self, k) for k in self._WORLD_ATTRS if hasattr(self, k)}
         except Exception:  # pragma: no cover - a broken world is not reused
             world = None
-        _release(self.client, self._urdf_path, self._key if world is not None else None, world)
+        world_pool.release(self.client, self._urdf_path, self._key if world is not None else None, world)
         self.client = -1
 
 
