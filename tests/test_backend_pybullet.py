@@ -1,16 +1,15 @@
-"""PyBullet backend: env checkers, walking, determinism, name mapping, faults, contacts, memory."""
+"""PyBullet backend specifics: turning, name mapping, faults, obstacle pool, coexisting clients, memory,
+contact distance, the state contract, servo mode, armature (the common contract:
+tests/test_backend_contract.py)."""
 
 import math
 import os
 
-import gymnasium as gym
 import numpy as np
 import pytest
 
 pybullet = pytest.importorskip("pybullet")
 
-from gymnasium.utils.env_checker import check_env as gym_check_env  # noqa: E402
-from stable_baselines3.common.env_checker import check_env as sb3_check_env  # noqa: E402
 
 import footsim  # noqa: E402,F401  (registers the env)
 from footsim.backends.bullet.sim import PybulletBackend  # noqa: E402
@@ -34,40 +33,6 @@ def backend():
     b.close()
 
 
-def test_env_checkers_pass():
-    env = gym.make("footsim/FootstepNav-v0", backend="pybullet", obstacles=True)
-    try:
-        gym_check_env(env.unwrapped, skip_render_check=True)
-    finally:
-        env.close()
-    env = FootstepEnv(backend="pybullet")
-    try:
-        sb3_check_env(env)
-    finally:
-        env.close()
-
-
-def test_render_rgb_frame():
-    env = FootstepEnv(backend={"name": "pybullet", "render_size": [160, 120]}, obstacles=True, render_mode="rgb_array")
-    try:
-        env.reset(seed=3)
-        frame = env.render()
-    finally:
-        env.close()
-    assert frame.shape == (120, 160, 3) and frame.dtype == np.uint8
-    assert frame.std() > 5.0  # not blank
-    assert len(np.unique(frame.reshape(-1, 3), axis=0)) > 50
-
-
-def test_short_walk_moves_forward_without_falling(backend):
-    start = backend.reset(EMPTY, np.random.default_rng(0))
-    for _ in range(5):
-        result = backend.execute(DoubleStep.from_action(FORWARD, backend.robot.step_limits))
-        assert not result.fell and result.sim_error is None
-    assert result.pose.x - start.x > 0.3  # 5 double steps of ~0.16 m commanded (first one shorter)
-    assert abs(result.pose.y - start.y) < 0.25
-
-
 @pytest.mark.parametrize("direction", [1, -1])
 def test_max_turns_do_not_fall_and_turn_as_commanded(backend, direction):
     """Max turns fell on PyBullet until it got 60 solver iterations (conf/backend/pybullet.yaml):
@@ -85,30 +50,6 @@ def test_max_turns_do_not_fall_and_turn_as_commanded(backend, direction):
     assert not executed["fell"] and executed["sim_error"] is None
     assert abs(commanded) > 10.0  # 8 x 2 x 0.764 rad, less the start step's shorter turn
     assert abs(executed["yaw"] - commanded) < 0.25 * abs(commanded)
-
-
-def _trajectory(seed, warmup_seed=None):
-    env = FootstepEnv(backend="pybullet", obstacles=True)
-    try:
-        if warmup_seed is not None:  # an earlier, different episode must leave no trace
-            env.reset(seed=warmup_seed)
-            for _ in range(3):
-                env.step(np.random.default_rng(warmup_seed).uniform(-1, 1, 6))
-        env.reset(seed=seed)
-        rng = np.random.default_rng(seed)
-        rows = []
-        for _ in range(4):
-            obs, r, term, trunc, info = env.step(rng.uniform(-0.5, 0.5, 6))
-            rows.append(np.concatenate([info["pose"], obs]))
-        return np.array(rows)
-    finally:
-        env.close()
-
-
-def test_same_seed_identical_trajectory():
-    a, b = _trajectory(7), _trajectory(7)
-    np.testing.assert_array_equal(a, b)  # bit-identical poses and observations
-    np.testing.assert_array_equal(a, _trajectory(7, warmup_seed=3))
 
 
 def test_joint_name_mapping(backend):
@@ -174,23 +115,6 @@ def test_blow_up_is_a_sim_error_with_finite_observation():
             obs, reward, term, trunc, info = env.step(FORWARD)
             assert term and info["outcome"] == "sim_error", info["outcome"]
             assert np.all(np.isfinite(obs))
-    finally:
-        env.close()
-
-
-def test_obstacle_contact_is_reported_and_does_not_end_the_episode():
-    scene = Scene(goal=Pose2D(2.0, 0.0, 0.0), obstacles=(Obstacle(0.3, 0.0, 0.15),))
-    env = FootstepEnv(backend="pybullet", obstacles=True)
-    try:
-        env.reset(seed=0, options={"scene": scene})
-        collided = False
-        for _ in range(6):
-            obs, r, term, trunc, info = env.step(FORWARD)
-            collided = collided or info["collided"]
-            if collided or term:
-                break
-        assert collided
-        assert info["outcome"] != "collision"  # 3D: reported, not terminal (collision_ends_episode false)
     finally:
         env.close()
 
@@ -278,6 +202,7 @@ def _rss_mb():
     return psutil.Process(os.getpid()).memory_info().rss / 2**20
 
 
+@pytest.mark.slow
 def test_create_reset_close_cycles_do_not_leak(backend):
     for _ in range(20):  # warm up allocators
         PybulletBackend(backend.robot, backend.walk).close()
