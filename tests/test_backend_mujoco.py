@@ -132,7 +132,7 @@ def test_servo_kv_feeds_the_target_velocity_forward(backend):
     if sim.servo_kv <= 0:
         pytest.skip("servo_kv is off in conf/backend/mujoco.yaml")
     backend.reset(EMPTY, np.random.default_rng(0))
-    m, legs = sim.model, sim._leg_ctrl
+    m, legs = sim.model, sim.state.leg_ids
     np.testing.assert_allclose(m.actuator_biasprm[legs, 2], -sim.servo_kv)
     base = backend.engine.standing_joint_targets()
     sim.set_leg_targets(base)
@@ -171,7 +171,7 @@ def test_obstacle_pool_is_placed_and_parked(backend):
         ball=Obstacle(1.5, 0.0, 0.075),
     )
     backend.reset(scene, np.random.default_rng(0))
-    geoms = sim._obstacle_geoms
+    geoms = sim.obstacle_geoms
     np.testing.assert_allclose(sim.model.geom_pos[geoms[0], :2], (1.0, 0.5))
     np.testing.assert_allclose(sim.model.geom_size[geoms[1], 0], 0.3)
     np.testing.assert_allclose(sim.model.geom_pos[geoms[-1]], (1.5, 0.0, 0.075))
@@ -273,7 +273,7 @@ def test_obstacle_inflation_widens_obstacles_in_the_physics_only():
             for _ in range(4):
                 _, _, term, _, info = env.step(FORWARD)
                 contacts.append(info["collided"])
-            return obs, contacts, env.backend.sim.model.geom_size[env.backend.sim._obstacle_geoms[0], 0]
+            return obs, contacts, env.backend.sim.model.geom_size[env.backend.sim.obstacle_geoms[0], 0]
         finally:
             env.close()
 

@@ -376,6 +376,15 @@ class Physics3DBackend(Backend):
         elif "push_duration" in values or "push_interval" in values:
             raise ValueError("randomization push_duration / push_interval need push_force")
 
+    def clear_randomization(self) -> None:
+        """Forget every value drawn so far: the driver terms are off at once, the sim's terms are
+        back at nominal at the next ``reset`` or ``execute``."""
+        self._values = {}
+        self._latency = 0
+        self._push_ticks = None
+        self._push_force = 0.0
+        self._sim_dirty = True
+
     def _apply_sim_randomization(self, direction_rng: np.random.Generator | None) -> None:
         sim_values = {k: v for k, v in self._values.items() if k in self.sim.capabilities}
         if "terrain_slope" in sim_values:

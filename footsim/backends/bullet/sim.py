@@ -266,7 +266,7 @@ class PybulletSim(PhysicsSim):
         self._stand_ins: list[int] = []  # render-only visual bodies of this episode's obstacles
         self._goal_marker = -1
         # Nominal masses and inertia diagonals of every robot link (-1: the torso), for randomization.
-        self._nominal_dynamics = {
+        self.nominal_dynamics = {
             link: (info[0], tuple(info[2]))
             for link in [-1, *range(p.getNumJoints(self.robot_id, physicsClientId=c))]
             for info in [p.getDynamicsInfo(self.robot_id, link, physicsClientId=c)]
@@ -586,7 +586,7 @@ class PybulletSim(PhysicsSim):
             return value
 
         mass = scale("link_mass_scale")
-        for link, (m, inertia) in self._nominal_dynamics.items():
+        for link, (m, inertia) in self.nominal_dynamics.items():
             p.changeDynamics(
                 body, link, mass=m * mass, localInertiaDiagonal=[v * mass for v in inertia], physicsClientId=c
             )
@@ -730,7 +730,7 @@ class PybulletSim(PhysicsSim):
         "_pool_kind",
         "_goal_marker",
         "_goal_arrow",
-        "_nominal_dynamics",
+        "nominal_dynamics",
     )
 
     def close(self) -> None:

@@ -231,7 +231,7 @@ class MujocoEngineSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):
     _obstacle_mask: np.ndarray
 
     def obstacle_contact(self) -> bool:
-        _, data = self._mj()
+        _, data = self.mj_model_data()
         if data.ncon == 0:
             return False
         return bool(self._obstacle_mask[data.contact.geom].any())

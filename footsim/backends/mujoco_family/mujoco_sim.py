@@ -117,12 +117,13 @@ class MujocoSim(MujocoEngineSim):
             # kv/kp * qdot_target to ctrl, which makes it kp (q_t - q) + kv (qdot_t - qdot).
             m.actuator_biasprm[self._leg_ctrl, 2] = -self.servo_kv
             self._feed_forward = ServoFeedForward(self.servo_kv, m.actuator_gainprm[self._leg_ctrl, 0], self.control_dt)
-        self._obstacle_geoms = np.array(
+        # The obstacle pool's geom ids: the cylinders, then the ball.
+        self.obstacle_geoms = np.array(
             [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, n) for n in names], dtype=np.intp
         )
-        self._ball_geom = int(self._obstacle_geoms[-1])
+        self._ball_geom = int(self.obstacle_geoms[-1])
         self._obstacle_mask = np.zeros(m.ngeom, dtype=bool)
-        self._obstacle_mask[self._obstacle_geoms] = True
+        self._obstacle_mask[self.obstacle_geoms] = True
         self.torso = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, robot.base_link)
         self._sole_sites = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, n) for n in ("l_sole", "r_sole")]
         self._warning_ids = fatal_warning_ids()
@@ -158,7 +159,7 @@ class MujocoSim(MujocoEngineSim):
         m.geom_rgba[geom, 3] = 0.0  # invisible
 
     def _park_all(self) -> None:
-        for g in self._obstacle_geoms:
+        for g in self.obstacle_geoms:
             self._park(int(g))
 
     def set_obstacles(self, scene: Scene) -> None:
@@ -167,7 +168,7 @@ class MujocoSim(MujocoEngineSim):
                 f"the MuJoCo backend holds at most {N_CYLINDERS} obstacles, scene has {len(scene.obstacles)}"
             )
         self._park_all()
-        for geom, obstacle in zip(self._obstacle_geoms[:-1], scene.obstacles):
+        for geom, obstacle in zip(self.obstacle_geoms[:-1], scene.obstacles):
             self._place(int(geom), obstacle.x, obstacle.y, obstacle.r, ball=False)
         if scene.ball is not None:
             self._place(self._ball_geom, scene.ball.x, scene.ball.y, scene.ball.r, ball=True)
