@@ -20,6 +20,7 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 from footsim.backends.base import Backend, RenderOverlay, StepResult
@@ -461,9 +462,9 @@ class Physics3DBackend(Backend):
             s.command,
             s.leg_ids,
         )
-        tick = self._typed(
-            control_tick, (targets, trunk, 0, gains, quat, w_last, frame, delay, slot, feed_forward, command, leg_ids)
-        )
+        key = (control_tick, s, gains is None, delay is None, numba.typeof(targets), numba.typeof(trunk))
+        args = (targets, trunk, 0, gains, quat, w_last, frame, delay, slot, feed_forward, command, leg_ids)
+        tick = self._typed(control_tick, key, args)
         read = None if (s.live or gains is None) else self.sim.read_state
         write = None if s.live else self.sim.write_command
         push = None if self._push_ticks is None else self._push_tick
@@ -482,12 +483,10 @@ class Physics3DBackend(Backend):
 
         return run
 
-    def _typed(self, kernel, args: tuple):
-        """``kernel``'s compiled code for the types of ``args`` (``kernels2d.typed_entry``, kept
-        per combination: the contract's arrays keep their types, the optional ones are None or not)."""
-        import numba
-
-        key = (kernel, *(numba.typeof(a) for a in args))
+    def _typed(self, kernel, key: tuple, args: tuple):
+        """``kernel``'s compiled code for the types of ``args`` (``kernels2d.typed_entry``), kept
+        under ``key``: whatever decides those types (the state contract's arrays keep theirs; the
+        optional ones are None or not)."""
         entry = self._entries.get(key)
         if entry is None:
             entry = self._entries[key] = typed_entry(kernel, *args)
@@ -574,7 +573,7 @@ class Physics3DBackend(Backend):
         if not s.live:
             self.sim.read_state(velocity=True)
         args = s.check_args(self.out_of_bounds, self._tilt_buffer)
-        if self._typed(state_ok, args)(*args):
+        if self._typed(state_ok, (state_ok, s), args)(*args):
             return None, self._record_tilt(float(self._tilt_buffer[0]), float(self._tilt_buffer[1]))
         return self._full_status()
 
@@ -614,4 +613,5 @@ class Physics3DBackend(Backend):
         return self.sim.render(overlay, *self.render_size)
 
     def close(self) -> None:
+        self._entries.clear()  # they hold the sim's state arrays
         self.sim.close()
