@@ -122,6 +122,17 @@ def corrected(target, roll_gain, pitch_gain, roll_error, pitch_error):
 
 
 @_compiled
+def send(target, j, feed_forward, command, leg_ids):
+    """Leg joint ``j``'s command: ``target`` through the servo feed-forward (``feed_forward``
+    (2, 12) [gain, previous target], updated in place; None: none) into ``command[leg_ids[j]]``."""
+    if feed_forward is not None:
+        command[leg_ids[j]] = target + feed_forward[0, j] * (target - feed_forward[1, j])
+        feed_forward[1, j] = target
+    else:
+        command[leg_ids[j]] = target
+
+
+@_compiled
 def control_tick(targets, trunk, k, gains, quat, w_last, frame, delay, delay_slot, feed_forward, command, leg_ids):
     """Write control tick ``k``'s leg commands into ``command``.
 
@@ -150,24 +161,14 @@ def control_tick(targets, trunk, k, gains, quat, w_last, frame, delay, delay_slo
             if fill:  # a new line starts full of this tick's targets
                 delay[:, j] = t
             t, delay[slot, j] = delay[slot, j], t
-        if feed_forward is not None:
-            command[leg_ids[j]] = t + feed_forward[0, j] * (t - feed_forward[1, j])
-            feed_forward[1, j] = t
-        else:
-            command[leg_ids[j]] = t
+        send(t, j, feed_forward, command, leg_ids)
 
 
 @_compiled
 def write_targets(targets, feed_forward, command, leg_ids):
-    """``targets`` (12,) as leg commands: the servo feed-forward (or None) and the write of
-    :func:`control_tick` for one given set of targets."""
+    """``targets`` (12,) as leg commands (:func:`send`), outside the control ticks."""
     for j in range(targets.shape[0]):
-        t = targets[j]
-        if feed_forward is not None:
-            command[leg_ids[j]] = t + feed_forward[0, j] * (t - feed_forward[1, j])
-            feed_forward[1, j] = t
-        else:
-            command[leg_ids[j]] = t
+        send(targets[j], j, feed_forward, command, leg_ids)
 
 
 # -- the state check ---------------------------------------------------------------------------
