@@ -146,7 +146,8 @@ class SimState:
 
 
 class PhysicsSim(ABC):
-    """The physics verbs a 3D backend provides.  Joints are addressed by name at ``build``."""
+    """The physics verbs and the state contract (``state``, a :class:`SimState`) a 3D sim provides.
+    Joints are addressed by name at ``build``."""
 
     #: Physics randomization terms this sim applies in ``apply_physics_randomization`` (all of
     #: ``PHYSICS_TERMS`` for the simulators here; none for a sim without randomization verbs).
