@@ -70,7 +70,8 @@ class Backend(ABC):
         return None
 
     def close(self) -> None:
-        pass
+        """Release what the simulator holds (nothing by default)."""
+        return None
 
 
 @dataclass(frozen=True)

@@ -35,14 +35,14 @@ from footsim.kernels2d import _compiled
 
 
 @_compiled
-def clamped_asin(s):
+def clamped_asin(s: float) -> float:
     """asin of ``s`` clamped into [-1, 1] (rounding can push a rotation entry past 1); a NaN
     passes through."""
     return math.asin(-1.0 if s < -1.0 else 1.0 if s > 1.0 else s)
 
 
 @_compiled
-def fused_tilt(r20, r21):
+def fused_tilt(r20: float, r21: float) -> tuple[float, float]:
     """Fused (roll, pitch) from the bottom row (R[2,0], R[2,1]) of a body-to-world rotation."""
     return clamped_asin(r21), clamped_asin(-r20)
 
@@ -100,7 +100,7 @@ def _in_frame(row, frame):
 
 
 @_compiled
-def base_tilt(quat, w_last, frame):
+def base_tilt(quat: np.ndarray, w_last: bool, frame: np.ndarray | None) -> tuple[float, float]:
     """Fused (roll, pitch) of the base link from its orientation quaternion (see :func:`_in_frame`)."""
     r = _in_frame(_bottom_row(quat, w_last), frame)
     return fused_tilt(r[0], r[1])
@@ -116,13 +116,13 @@ def fused_roll_pitch(rotation: np.ndarray) -> tuple[float, float]:
 
 
 @_compiled
-def corrected(target, roll_gain, pitch_gain, roll_error, pitch_error):
+def corrected(target: float, roll_gain: float, pitch_gain: float, roll_error: float, pitch_error: float) -> float:
     """One joint's target plus the stabilizer's correction."""
     return target + (roll_gain * roll_error + pitch_gain * pitch_error)
 
 
 @_compiled
-def send(target, j, feed_forward, command, leg_ids):
+def send(target: float, j: int, feed_forward: np.ndarray | None, command: np.ndarray, leg_ids: np.ndarray) -> None:
     """Leg joint ``j``'s command: ``target`` through the servo feed-forward (``feed_forward``
     (2, 12) [gain, previous target], updated in place; None: none) into ``command[leg_ids[j]]``."""
     if feed_forward is not None:
@@ -133,7 +133,20 @@ def send(target, j, feed_forward, command, leg_ids):
 
 
 @_compiled
-def control_tick(targets, trunk, k, gains, quat, w_last, frame, delay, delay_slot, feed_forward, command, leg_ids):
+def control_tick(
+    targets: np.ndarray,
+    trunk: np.ndarray,
+    k: int,
+    gains: np.ndarray | None,
+    quat: np.ndarray,
+    w_last: bool,
+    frame: np.ndarray | None,
+    delay: np.ndarray | None,
+    delay_slot: np.ndarray,
+    feed_forward: np.ndarray | None,
+    command: np.ndarray,
+    leg_ids: np.ndarray,
+) -> None:
     """Write control tick ``k``'s leg commands into ``command``.
 
     ``targets`` (n, 12) and ``trunk`` (n, 6) are the walk trajectory's joint targets and trunk
@@ -165,7 +178,9 @@ def control_tick(targets, trunk, k, gains, quat, w_last, frame, delay, delay_slo
 
 
 @_compiled
-def write_targets(targets, feed_forward, command, leg_ids):
+def write_targets(
+    targets: np.ndarray, feed_forward: np.ndarray | None, command: np.ndarray, leg_ids: np.ndarray
+) -> None:
     """``targets`` (12,) as leg commands (:func:`send`), outside the control ticks."""
     for j in range(targets.shape[0]):
         send(targets[j], j, feed_forward, command, leg_ids)
@@ -175,7 +190,7 @@ def write_targets(targets, feed_forward, command, leg_ids):
 
 
 @_compiled
-def all_finite(a):
+def all_finite(a: np.ndarray) -> bool:
     """``np.isfinite(a).all()`` without numpy's per-call overhead (~4 µs on a small array)."""
     for v in a.flat:
         if not math.isfinite(v):
@@ -185,21 +200,21 @@ def all_finite(a):
 
 @_compiled
 def state_ok(
-    fault,
-    warnings,
-    warning_ids,
-    finite,
-    velocity,
-    max_speed,
-    position,
-    quat,
-    w_last,
-    normalizes,
-    frame,
-    offset,
-    out_of_bounds,
-    tilt,
-):
+    fault: np.ndarray,
+    warnings: np.ndarray,
+    warning_ids: np.ndarray,
+    finite: tuple[np.ndarray, ...],
+    velocity: np.ndarray | None,
+    max_speed: float,
+    position: np.ndarray,
+    quat: np.ndarray,
+    w_last: bool,
+    normalizes: bool,
+    frame: np.ndarray | None,
+    offset: np.ndarray | None,
+    out_of_bounds: float,
+    tilt: np.ndarray,
+) -> bool:
     """The driver's periodic check while all is well, in one call: True, with the base link's
     fused (roll, pitch) written into ``tilt``, when the sim holds no fault of its own
     (``fault[0]``), no fatal warning (``warnings`` at ``warning_ids``), every value of the

@@ -218,7 +218,8 @@ class PhysicsSim(ABC):
         return None
 
     def close(self) -> None:
-        pass
+        """Release what the simulator holds (nothing by default)."""
+        return None
 
 
 class Physics3DBackend(Backend):
