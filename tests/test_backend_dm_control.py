@@ -17,6 +17,7 @@ import footsim  # noqa: E402,F401  (registers the env)
 from footsim.backends.mujoco_family.dm_control_sim import N_CYLINDERS, DmControlBackend  # noqa: E402
 from footsim.env import FootstepEnv  # noqa: E402
 from footsim.geometry import Pose2D  # noqa: E402
+from footsim.robots.mjcf import sole_site  # noqa: E402
 from footsim.scene import Obstacle, Scene  # noqa: E402
 from footsim.walk.ik import LEG_JOINT_NAMES  # noqa: E402
 from footsim.walkcheck import make_backend  # noqa: E402
@@ -70,7 +71,8 @@ def test_reset_levels_the_soles_on_the_floor(backend):
         np.array([0.0, 0.0, backend.walk.trunk_height]),
         dict(backend.robot.walk_ready) | dict(zip(LEG_JOINT_NAMES, backend.engine.standing_joint_targets().tolist())),
     )
-    soles = backend.sim._soles
+    model = backend.sim.mjcf_model  # found by name through dm_control's own API
+    soles = backend.sim.physics.bind([model.find("site", sole_site(s)) for s in ("left", "right")])
     np.testing.assert_allclose(soles.xpos[:, 2].min(), 0.0, atol=1e-9)
     np.testing.assert_allclose(soles.xmat[0].reshape(3, 3)[2], (0.0, 0.0, 1.0), atol=1e-9)  # left sole level
 
@@ -161,7 +163,7 @@ def test_servo_kv_feeds_the_target_velocity_forward(backend):
     if sim.servo_kv <= 0:
         pytest.skip("servo_kv is off in conf/backend/dm_control.yaml")
     backend.reset(EMPTY, np.random.default_rng(0))
-    legs = sim._legs
+    legs = sim.physics.bind([sim.mjcf_model.find("actuator", n) for n in LEG_JOINT_NAMES])
     np.testing.assert_allclose(legs.biasprm[:, 2], -sim.servo_kv)
     base = backend.engine.standing_joint_targets()
     sim.set_leg_targets(base)
@@ -200,8 +202,8 @@ def test_obstacle_pool_is_placed_and_parked(backend):
         ball=Obstacle(1.5, 0.0, 0.075),
     )
     backend.reset(scene, np.random.default_rng(0))
-    pool = sim.physics.bind(sim._pool)
-    assert [g.name for g in sim._pool] == [f"obstacle{i}" for i in range(N_CYLINDERS)] + ["ball"]
+    names = [f"obstacle{i}" for i in range(N_CYLINDERS)] + ["ball"]
+    pool = sim.physics.bind([sim.mjcf_model.find("geom", n) for n in names])
     np.testing.assert_allclose(pool.pos[0, :2], (1.0, 0.5))
     np.testing.assert_allclose(pool.size[1, 0], 0.3)
     np.testing.assert_allclose(pool.pos[-1], (1.5, 0.0, 0.075))
