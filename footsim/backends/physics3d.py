@@ -20,7 +20,6 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-import numba
 import numpy as np
 
 from footsim.backends.base import Backend, RenderOverlay, StepResult
@@ -339,6 +338,7 @@ class Physics3DBackend(Backend):
         self._delay: np.ndarray | None = None  # the latency line: targets not yet sent
         self._delay_slot = np.zeros(2, dtype=np.int64)  # [row of the oldest target, fill the line first]
         self._entries: dict = {}  # compiled entries of the control tick and the state check
+        self._check: tuple = (None, None, ())  # the state check's entry, state and arguments
         self._push_ticks: tuple[int, int] | None = None  # (interval, duration) in control ticks
         self._push_force = 0.0
         self._tick = 0  # control ticks since reset
@@ -464,7 +464,10 @@ class Physics3DBackend(Backend):
             s.command,
             s.leg_ids,
         )
-        key = (control_tick, s, gains is None, delay is None, numba.typeof(targets), numba.typeof(trunk))
+        layouts = tuple(
+            (a.dtype, a.ndim, a.flags.c_contiguous, a.flags.f_contiguous, a.flags.writeable) for a in (targets, trunk)
+        )
+        key = (control_tick, s, gains is None, delay is None, layouts)  # what decides the compiled types
         args = (targets, trunk, 0, gains, quat, w_last, frame, delay, slot, feed_forward, command, leg_ids)
         tick = self._typed(control_tick, key, args)
         read = None if (s.live or gains is None) else self.sim.read_state
@@ -574,8 +577,12 @@ class Physics3DBackend(Backend):
         s = self.sim.state
         if not s.live:
             self.sim.read_state(velocity=True)
-        args = s.check_args(self.out_of_bounds, self._tilt_buffer)
-        if self._typed(state_ok, (state_ok, s), args)(*args):
+        check, state, args = self._check
+        if state is not s:  # the arguments are the contract's arrays: built once per state
+            args = s.check_args(self.out_of_bounds, self._tilt_buffer)
+            check = self._typed(state_ok, (state_ok, s), args)
+            self._check = check, s, args
+        if check(*args):
             return None, self._record_tilt(float(self._tilt_buffer[0]), float(self._tilt_buffer[1]))
         return self._full_status()
 
@@ -616,4 +623,5 @@ class Physics3DBackend(Backend):
 
     def close(self) -> None:
         self._entries.clear()  # they hold the sim's state arrays
+        self._check = (None, None, ())
         self.sim.close()
