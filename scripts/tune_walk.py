@@ -72,7 +72,7 @@ START = {
 }
 
 
-# Gains of footsim.backends.physics3d.TrunkStabilizer [rad per rad of trunk error]; hand scans
+# Gains of footsim.backends.control.TrunkStabilizer [rad per rad of trunk error]; hand scans
 # on MuJoCo: hip roll 0.3-0.5 helps the lateral sequences, pitch gains alone do not.
 STABILIZER_RANGES = {
     "hip_roll": (0.0, 1.2),

@@ -1,20 +1,18 @@
-"""MuJoCo backend: env checkers, walking, determinism, name mapping, faults, contacts, memory."""
+"""MuJoCo backend specifics: name mapping, welded upper body, servo feed-forward, faults, obstacle pool,
+memory, rolling friction, obstacle inflation (the common contract: tests/test_backend_contract.py)."""
 
 import os
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-import gymnasium as gym
 import numpy as np
 import pytest
 
 mujoco = pytest.importorskip("mujoco")
 
-from gymnasium.utils.env_checker import check_env as gym_check_env  # noqa: E402
-from stable_baselines3.common.env_checker import check_env as sb3_check_env  # noqa: E402
 
 import footsim  # noqa: E402,F401  (registers the env)
-from footsim.backends.mujoco_backend import N_CYLINDERS, MujocoBackend  # noqa: E402
+from footsim.backends.mujoco_family.mujoco_sim import N_CYLINDERS, MujocoBackend  # noqa: E402
 from footsim.calibration.walkcheck import make_backend  # noqa: E402
 from footsim.env import FootstepEnv  # noqa: E402
 from footsim.geometry import Pose2D  # noqa: E402
@@ -31,31 +29,6 @@ def backend():
     b = make_backend("mujoco")
     yield b
     b.close()
-
-
-def test_env_checkers_pass():
-    env = gym.make("footsim/FootstepNav-v0", backend="mujoco", obstacles=True)
-    try:
-        gym_check_env(env.unwrapped, skip_render_check=True)
-    finally:
-        env.close()
-    env = FootstepEnv(backend="mujoco")
-    try:
-        sb3_check_env(env)
-    finally:
-        env.close()
-
-
-def test_render_rgb_frame():
-    env = FootstepEnv(backend={"name": "mujoco", "render_size": [160, 120]}, obstacles=True, render_mode="rgb_array")
-    try:
-        env.reset(seed=3)
-        frame = env.render()
-    finally:
-        env.close()
-    assert frame.shape == (120, 160, 3) and frame.dtype == np.uint8
-    assert frame.std() > 5.0  # not blank
-    assert len(np.unique(frame.reshape(-1, 3), axis=0)) > 50
 
 
 def test_render_with_rendering_switched_off_names_mujoco_gl():
@@ -85,34 +58,6 @@ def test_render_with_rendering_switched_off_names_mujoco_gl():
     lines = result.stdout.splitlines()
     assert [line.split()[0] for line in lines] == ["mujoco", "dm_control"]
     assert all("MUJOCO_GL=disable" in line for line in lines)
-
-
-def test_short_walk_moves_forward_without_falling(backend):
-    start = backend.reset(EMPTY, np.random.default_rng(0))
-    for _ in range(5):
-        result = backend.execute(DoubleStep.from_action(FORWARD, backend.robot.step_limits))
-        assert not result.fell and result.sim_error is None
-    assert result.pose.x - start.x > 0.4  # 5 double steps of ~0.16 m commanded (first one shorter)
-    assert abs(result.pose.y - start.y) < 0.25
-
-
-def _trajectory(seed):
-    env = FootstepEnv(backend="mujoco", obstacles=True)
-    try:
-        env.reset(seed=seed)
-        rng = np.random.default_rng(seed)
-        poses = []
-        for _ in range(4):
-            obs, r, term, trunc, info = env.step(rng.uniform(-0.5, 0.5, 6))
-            poses.append(np.concatenate([info["pose"], obs]))
-        return np.array(poses)
-    finally:
-        env.close()
-
-
-def test_same_seed_identical_trajectory():
-    a, b = _trajectory(7), _trajectory(7)
-    np.testing.assert_array_equal(a, b)  # bit-identical poses and observations
 
 
 def test_joint_name_mapping(backend):
@@ -187,7 +132,7 @@ def test_servo_kv_feeds_the_target_velocity_forward(backend):
     if sim.servo_kv <= 0:
         pytest.skip("servo_kv is off in conf/backend/mujoco.yaml")
     backend.reset(EMPTY, np.random.default_rng(0))
-    m, legs = sim.model, sim._leg_ctrl
+    m, legs = sim.model, sim.state.leg_ids
     np.testing.assert_allclose(m.actuator_biasprm[legs, 2], -sim.servo_kv)
     base = backend.engine.standing_joint_targets()
     sim.set_leg_targets(base)
@@ -218,23 +163,6 @@ def test_blow_up_is_a_sim_error_with_finite_observation(tmp_path, monkeypatch):
         env.close()
 
 
-def test_obstacle_contact_is_reported_and_does_not_end_the_episode():
-    scene = Scene(goal=Pose2D(2.0, 0.0, 0.0), obstacles=(Obstacle(0.35, 0.0, 0.15),))
-    env = FootstepEnv(backend="mujoco", obstacles=True)
-    try:
-        env.reset(seed=0, options={"scene": scene})
-        collided = False
-        for _ in range(6):
-            obs, r, term, trunc, info = env.step(FORWARD)
-            collided = collided or info["collided"]
-            if collided or term:
-                break
-        assert collided
-        assert info["outcome"] != "collision"  # 3D: reported, not terminal (collision_ends_episode false)
-    finally:
-        env.close()
-
-
 def test_obstacle_pool_is_placed_and_parked(backend):
     sim = backend.sim
     scene = Scene(
@@ -243,7 +171,7 @@ def test_obstacle_pool_is_placed_and_parked(backend):
         ball=Obstacle(1.5, 0.0, 0.075),
     )
     backend.reset(scene, np.random.default_rng(0))
-    geoms = sim._obstacle_geoms
+    geoms = sim.obstacle_geoms
     np.testing.assert_allclose(sim.model.geom_pos[geoms[0], :2], (1.0, 0.5))
     np.testing.assert_allclose(sim.model.geom_size[geoms[1], 0], 0.3)
     np.testing.assert_allclose(sim.model.geom_pos[geoms[-1]], (1.5, 0.0, 0.075))
@@ -345,7 +273,7 @@ def test_obstacle_inflation_widens_obstacles_in_the_physics_only():
             for _ in range(4):
                 _, _, term, _, info = env.step(FORWARD)
                 contacts.append(info["collided"])
-            return obs, contacts, env.backend.sim.model.geom_size[env.backend.sim._obstacle_geoms[0], 0]
+            return obs, contacts, env.backend.sim.model.geom_size[env.backend.sim.obstacle_geoms[0], 0]
         finally:
             env.close()
 

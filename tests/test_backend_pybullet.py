@@ -1,22 +1,23 @@
-"""PyBullet backend: env checkers, walking, determinism, name mapping, faults, contacts, memory."""
+"""PyBullet backend specifics: turning, name mapping, faults, obstacle pool, coexisting clients, memory,
+contact distance, the state contract, servo mode, armature (the common contract:
+tests/test_backend_contract.py)."""
 
 import math
 import os
 
-import gymnasium as gym
 import numpy as np
 import pytest
 
 pybullet = pytest.importorskip("pybullet")
 
-from gymnasium.utils.env_checker import check_env as gym_check_env  # noqa: E402
-from stable_baselines3.common.env_checker import check_env as sb3_check_env  # noqa: E402
 
 import footsim  # noqa: E402,F401  (registers the env)
-from footsim.backends.pybullet_backend import PybulletBackend, model_urdf  # noqa: E402
+from footsim.backends.bullet.sim import PybulletBackend  # noqa: E402
+from footsim.backends.control import base_tilt, fused_roll_pitch, state_ok  # noqa: E402
 from footsim.calibration.walkcheck import make_backend  # noqa: E402
 from footsim.env import FootstepEnv  # noqa: E402
 from footsim.geometry import Pose2D  # noqa: E402
+from footsim.robots.urdf import urdf_xml  # noqa: E402
 from footsim.scene import Obstacle, Scene  # noqa: E402
 from footsim.walk.footsteps import DoubleStep  # noqa: E402
 from footsim.walk.ik import LEG_JOINT_NAMES  # noqa: E402
@@ -30,40 +31,6 @@ def backend():
     b = make_backend("pybullet")
     yield b
     b.close()
-
-
-def test_env_checkers_pass():
-    env = gym.make("footsim/FootstepNav-v0", backend="pybullet", obstacles=True)
-    try:
-        gym_check_env(env.unwrapped, skip_render_check=True)
-    finally:
-        env.close()
-    env = FootstepEnv(backend="pybullet")
-    try:
-        sb3_check_env(env)
-    finally:
-        env.close()
-
-
-def test_render_rgb_frame():
-    env = FootstepEnv(backend={"name": "pybullet", "render_size": [160, 120]}, obstacles=True, render_mode="rgb_array")
-    try:
-        env.reset(seed=3)
-        frame = env.render()
-    finally:
-        env.close()
-    assert frame.shape == (120, 160, 3) and frame.dtype == np.uint8
-    assert frame.std() > 5.0  # not blank
-    assert len(np.unique(frame.reshape(-1, 3), axis=0)) > 50
-
-
-def test_short_walk_moves_forward_without_falling(backend):
-    start = backend.reset(EMPTY, np.random.default_rng(0))
-    for _ in range(5):
-        result = backend.execute(DoubleStep.from_action(FORWARD, backend.robot.step_limits))
-        assert not result.fell and result.sim_error is None
-    assert result.pose.x - start.x > 0.3  # 5 double steps of ~0.16 m commanded (first one shorter)
-    assert abs(result.pose.y - start.y) < 0.25
 
 
 @pytest.mark.parametrize("direction", [1, -1])
@@ -83,30 +50,6 @@ def test_max_turns_do_not_fall_and_turn_as_commanded(backend, direction):
     assert not executed["fell"] and executed["sim_error"] is None
     assert abs(commanded) > 10.0  # 8 x 2 x 0.764 rad, less the start step's shorter turn
     assert abs(executed["yaw"] - commanded) < 0.25 * abs(commanded)
-
-
-def _trajectory(seed, warmup_seed=None):
-    env = FootstepEnv(backend="pybullet", obstacles=True)
-    try:
-        if warmup_seed is not None:  # an earlier, different episode must leave no trace
-            env.reset(seed=warmup_seed)
-            for _ in range(3):
-                env.step(np.random.default_rng(warmup_seed).uniform(-1, 1, 6))
-        env.reset(seed=seed)
-        rng = np.random.default_rng(seed)
-        rows = []
-        for _ in range(4):
-            obs, r, term, trunc, info = env.step(rng.uniform(-0.5, 0.5, 6))
-            rows.append(np.concatenate([info["pose"], obs]))
-        return np.array(rows)
-    finally:
-        env.close()
-
-
-def test_same_seed_identical_trajectory():
-    a, b = _trajectory(7), _trajectory(7)
-    np.testing.assert_array_equal(a, b)  # bit-identical poses and observations
-    np.testing.assert_array_equal(a, _trajectory(7, warmup_seed=3))
 
 
 def test_joint_name_mapping(backend):
@@ -145,7 +88,7 @@ def test_full_model_maps_every_spec_joint(backend):
                 assert q[name] == pytest.approx(angle, abs=0.05), name
     finally:
         full.close()
-    assert 'type="fixed"' in model_urdf(backend.robot, True)
+    assert 'type="fixed"' in urdf_xml(backend.robot, True)
 
 
 def test_blow_up_is_a_sim_error_with_finite_observation():
@@ -168,27 +111,11 @@ def test_blow_up_is_a_sim_error_with_finite_observation():
                 pybullet.resetBasePositionAndOrientation(
                     sim.robot_id, [0, 0, 1e4], [0, 0, 0, 1], physicsClientId=sim.client
                 )
-            assert sim.sim_error() is not None or env.unwrapped.backend._status()[0] is not None
+            out = max(abs(v) for v in sim.base_pose()[0]) > env.unwrapped.backend.out_of_bounds
+            assert sim.sim_error() is not None or out  # what the driver's full check reports
             obs, reward, term, trunc, info = env.step(FORWARD)
             assert term and info["outcome"] == "sim_error", info["outcome"]
             assert np.all(np.isfinite(obs))
-    finally:
-        env.close()
-
-
-def test_obstacle_contact_is_reported_and_does_not_end_the_episode():
-    scene = Scene(goal=Pose2D(2.0, 0.0, 0.0), obstacles=(Obstacle(0.3, 0.0, 0.15),))
-    env = FootstepEnv(backend="pybullet", obstacles=True)
-    try:
-        env.reset(seed=0, options={"scene": scene})
-        collided = False
-        for _ in range(6):
-            obs, r, term, trunc, info = env.step(FORWARD)
-            collided = collided or info["collided"]
-            if collided or term:
-                break
-        assert collided
-        assert info["outcome"] != "collision"  # 3D: reported, not terminal (collision_ends_episode false)
     finally:
         env.close()
 
@@ -208,10 +135,10 @@ def test_obstacles_and_ball_are_placed(backend):
     assert pybullet.getCollisionShapeData(sim.obstacle_ids[1], -1, physicsClientId=c)[0][2] == pybullet.GEOM_CYLINDER
     assert pybullet.getCollisionShapeData(sim.obstacle_ids[2], -1, physicsClientId=c)[0][2] == pybullet.GEOM_SPHERE
     assert not sim.obstacle_contact()
-    pools = sum(len(v) for v in sim._free.values())
+    placed = list(sim.obstacle_ids)
     backend.reset(EMPTY, np.random.default_rng(0))
-    assert sim.obstacle_ids == [] and sum(len(v) for v in sim._free.values()) == pools + 3
-    assert pybullet.getBasePositionAndOrientation(sim._free["ball"][0], physicsClientId=c)[0][2] < -50
+    assert sim.obstacle_ids == []  # the bodies are parked far below the floor, kept for reuse
+    assert all(pybullet.getBasePositionAndOrientation(b, physicsClientId=c)[0][2] < -50 for b in placed)
 
 
 def test_obstacle_bodies_take_each_episodes_radius_and_stay_few(backend):
@@ -323,33 +250,26 @@ def test_obstacle_contact_means_touching_not_merely_near(backend):
     assert near_but_apart >= 1  # the case the check exists for was exercised
 
 
-def test_base_tilt_from_the_quaternion_matches_the_rotation_matrix(backend):
-    """The per-tick tilt read (quaternion algebra) against fused_roll_pitch of base_pose's
-    matrix (pybullet's getMatrixFromQuaternion), for random orientations and for an inertial
-    frame rotated against the link frame (a robot whose base inertia is not diagonal)."""
-    from footsim.backends.physics3d import fused_roll_pitch
-
+def test_the_state_contract_tilt_matches_the_rotation_matrix(backend):
+    """The control law's tilt from the state Bullet's read fills (the inertial frame's quaternion,
+    x y z w, and the link frame in it) against fused_roll_pitch of base_pose's matrix
+    (pybullet's getMatrixFromQuaternion), for random orientations."""
     sim = backend.sim
     backend.reset(EMPTY, np.random.default_rng(0))
     rng = np.random.default_rng(5)
-    saved = sim._com_rot, sim._com_rows
     try:
-        for com_rotated in (False, True):
-            if com_rotated:
-                a = rng.normal(size=3)
-                k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
-                rot, _ = np.linalg.qr(np.eye(3) + k)  # some rotation
-                rot *= np.sign(np.linalg.det(rot))
-                sim._com_rot, sim._com_rows = rot, (tuple(rot[0]), tuple(rot[1]))
-            for _ in range(300):
-                q = rng.normal(size=4)
-                position = pybullet.getBasePositionAndOrientation(sim.robot_id, physicsClientId=sim.client)[0]
-                pybullet.resetBasePositionAndOrientation(
-                    sim.robot_id, position, (q / np.linalg.norm(q)).tolist(), physicsClientId=sim.client
-                )
-                np.testing.assert_allclose(sim.base_tilt(), fused_roll_pitch(sim.base_pose()[1]), atol=1e-9)
+        for _ in range(300):
+            q = rng.normal(size=4)
+            position = pybullet.getBasePositionAndOrientation(sim.robot_id, physicsClientId=sim.client)[0]
+            pybullet.resetBasePositionAndOrientation(
+                sim.robot_id, position, (q / np.linalg.norm(q)).tolist(), physicsClientId=sim.client
+            )
+            sim.read_state()
+            s = sim.state
+            np.testing.assert_allclose(
+                base_tilt(s.quat, s.w_last, s.frame), fused_roll_pitch(sim.base_pose()[1]), atol=1e-9
+            )
     finally:
-        sim._com_rot, sim._com_rows = saved
         backend.reset(EMPTY, np.random.default_rng(0))
 
 
@@ -375,10 +295,10 @@ def test_reset_stands_on_flat_soles_like_mujoco(backend):
     mujoco_backend = pytest.importorskip("footsim.calibration.walkcheck").make_backend("mujoco")
     try:
         mujoco_backend.reset(EMPTY, np.random.default_rng(0))
-        expected_pitch = mujoco_backend.sim.base_tilt()[1]
+        expected_pitch = fused_roll_pitch(mujoco_backend.sim.base_pose()[1])[1]
     finally:
         mujoco_backend.close()
-    assert sim.base_tilt()[1] == pytest.approx(expected_pitch, abs=0.015)
+    assert fused_roll_pitch(sim.base_pose()[1])[1] == pytest.approx(expected_pitch, abs=0.015)
 
 
 SERVO = {
@@ -405,7 +325,7 @@ def test_servo_motor_applies_mujocos_actuator_law():
     try:
         b.reset(EMPTY, np.random.default_rng(0))
         sim, spec = b.sim, b.robot
-        previous = np.array(sim._previous)
+        previous = sim.state.last_targets()  # the standing targets of reset
         targets = previous + np.linspace(-0.01, 0.01, 12)
         sim.set_leg_targets(targets)
         rng = np.random.default_rng(1)
@@ -461,50 +381,16 @@ def test_armature_adds_to_the_joints_mass_matrix_diagonal():
         servo.close()
 
 
-def test_compiled_control_tick_is_bit_identical_to_the_verbs():
-    """``kernels3d.bullet_control_tick`` against ``base_tilt`` → ``stabilized_targets`` on random
-    quaternions and inertial-frame rotations, and end to end: 4 double steps with the compiled
-    tick and with the verbs leave the same joint and base state, bit for bit (also with a torso
-    COM offset, whose torque Bullet needs every physics step)."""
-    from footsim.backends.physics3d import TrunkStabilizer
-    from footsim.kernels3d import bullet_control_state, bullet_control_tick, stabilized_targets
+def test_a_torso_com_offset_changes_the_walk_deterministically():
+    """Bullet cannot move a loaded link's COM: the offset is a torque applied every physics step
+    of the one control tick.  The same walk twice is the same to the bit; with the offset it differs."""
 
-    rng = np.random.default_rng(4)
-    stabilizer = TrunkStabilizer(hip_roll=0.5, hip_pitch=-0.2, ankle_roll=0.1, ankle_pitch=-0.1)
-    b = make_backend("pybullet")
-    try:
-        sim = b.sim
-        for case in range(20):
-            targets, trunk = rng.normal(size=(15, 12)), rng.normal(scale=0.1, size=(15, 6))
-            rotation, _ = np.linalg.qr(rng.normal(size=(3, 3)))
-            rotation *= np.sign(np.linalg.det(rotation))
-            rows = (tuple(rotation[0].tolist()), tuple(rotation[1].tolist())) if case % 2 else sim._com_rows
-            state = bullet_control_state(targets, trunk, stabilizer.gains, np.array(rows))
-            for k in range(15):
-                quat = rng.normal(size=4)
-                quat = tuple((quat / np.linalg.norm(quat)).tolist())
-                saved = sim._com_rows
-                sim._com_rows = rows
-                try:
-                    position = pybullet.getBasePositionAndOrientation(sim.robot_id, physicsClientId=sim.client)[0]
-                    pybullet.resetBasePositionAndOrientation(sim.robot_id, position, quat, physicsClientId=sim.client)
-                    quat = pybullet.getBasePositionAndOrientation(sim.robot_id, physicsClientId=sim.client)[1]
-                    expected = stabilized_targets(targets, trunk, stabilizer.gains, k, *sim.base_tilt())
-                finally:
-                    sim._com_rows = saved
-                assert np.array(bullet_control_tick(state, k, quat)).tobytes() == expected.tobytes()
-    finally:
-        b.close()
-
-    def walk(compiled, randomization=None):
+    def walk(randomization=None):
         backend = make_backend("pybullet")
         try:
-            backend.compiled_ticks = compiled
             if randomization:
                 backend.apply_randomization(randomization)
             backend.reset(EMPTY, np.random.default_rng(3))
-            if compiled:  # while walking, the compiled tick must not fall back to the verbs
-                backend.sim.set_leg_targets = backend.sim.base_tilt = _refuse
             actions = np.random.default_rng(7).uniform(-0.6, 0.6, size=(4, 6))
             results = [backend.execute(DoubleStep.from_action(a, backend.robot.step_limits)) for a in actions]
             sim = backend.sim
@@ -514,31 +400,30 @@ def test_compiled_control_tick_is_bit_identical_to_the_verbs():
         finally:
             backend.close()
 
-    assert walk(True) == walk(False)
-    # A torso COM offset: Bullet's per-tick external torque inside the compiled loop.
     offset = {"torso_com_offset_x": 0.01, "torso_com_offset_y": -0.005}
-    assert walk(True, offset) == walk(False, offset) != walk(True)
+    assert walk() == walk()
+    assert walk(offset) == walk(offset) != walk()
 
 
-def _refuse(*_):
-    raise AssertionError("the compiled tick fell back to set_leg_targets / base_tilt")
-
-
-def test_quick_status_matches_the_full_check():
-    """``PybulletSim.status_ok`` (one compiled call) against the driver's full check
-    (``sim_error`` + ``base_pose`` + ``fused_roll_pitch``): the same tilt while walking, and the
-    same verdict for a NaN state, an exploding velocity, a base out of bounds and upside down."""
+def test_the_state_check_matches_the_full_check():
+    """``control.state_ok`` on the state Bullet's read fills against the verbs (``sim_error`` +
+    ``base_pose`` + ``fused_roll_pitch``): the same tilt while walking, and False for a base out
+    of bounds, upside down, and with an exploding velocity."""
     b = make_backend("pybullet")
     try:
         sim = b.sim
         b.reset(EMPTY, np.random.default_rng(0))
         tilt = np.zeros(2)
+
+        def check() -> bool:
+            sim.read_state(velocity=True)
+            return state_ok(*sim.state.check_args(b.out_of_bounds, tilt))
+
         for action in np.random.default_rng(1).uniform(-1, 1, size=(3, 6)):
-            b.execute(DoubleStep.from_action(action, b.robot.step_limits))
-            assert sim.status_ok(b.out_of_bounds, tilt)
-            error, fell = b._full_status()
-            assert error is None and not fell
-            np.testing.assert_allclose(tilt, b._tilt, rtol=0, atol=1e-12)
+            result = b.execute(DoubleStep.from_action(action, b.robot.step_limits))
+            assert check() and sim.sim_error() is None
+            np.testing.assert_allclose(tilt, fused_roll_pitch(sim.base_pose()[1]), rtol=0, atol=1e-12)
+            np.testing.assert_array_equal(tilt, result.tilt)
         body, c = sim.robot_id, sim.client
         position, orientation = pybullet.getBasePositionAndOrientation(body, physicsClientId=c)
         bad_states = [
@@ -549,11 +434,12 @@ def test_quick_status_matches_the_full_check():
         for bad_position, bad_orientation, velocity in bad_states:
             pybullet.resetBasePositionAndOrientation(body, bad_position, bad_orientation, physicsClientId=c)
             pybullet.resetBaseVelocity(body, velocity, [0, 0, 0], physicsClientId=c)
-            assert not sim.status_ok(b.out_of_bounds, tilt)
-            error, fell = b._full_status()
-            assert error is not None or fell
+            assert not check()
+            upside_down = sim.base_pose()[1][2, 2] < 0
+            out = max(abs(v) for v in sim.base_pose()[0]) > b.out_of_bounds
+            assert sim.sim_error() is not None or upside_down or out
         pybullet.resetBasePositionAndOrientation(body, position, orientation, physicsClientId=c)
         pybullet.resetBaseVelocity(body, [0, 0, 0], [0, 0, 0], physicsClientId=c)
-        assert sim.status_ok(b.out_of_bounds, tilt)
+        assert check()
     finally:
         b.close()

@@ -13,10 +13,10 @@ def test_distributions_have_the_configured_statistics():
     log = TermSpec.from_mapping("floor_friction", {"dist": "loguniform", "low": 0.5, "high": 2.0}, "r")
     nor = TermSpec.from_mapping("torso_com_offset_x", {"dist": "normal", "mean": 0.01, "std": 0.005}, "r")
     u = np.array([uni.sample(rng) for _ in range(20000)])
-    l = np.array([log.sample(rng) for _ in range(20000)])
+    logs = np.array([log.sample(rng) for _ in range(20000)])
     n = np.array([nor.sample(rng) for _ in range(20000)])
     assert u.min() >= 0.5 and u.max() <= 1.5 and u.mean() == pytest.approx(1.0, abs=0.01)
-    assert np.log(l).mean() == pytest.approx(0.5 * (math.log(0.5) + math.log(2.0)), abs=0.01)
+    assert np.log(logs).mean() == pytest.approx(0.5 * (math.log(0.5) + math.log(2.0)), abs=0.01)
     assert n.mean() == pytest.approx(0.01, abs=2e-4) and n.std() == pytest.approx(0.005, rel=0.03)
 
 

@@ -40,10 +40,8 @@ def env(request):
 
 def _fresh(b, values=None, seed=0):
     """Apply ``values`` (everything else nominal) and reset the backend."""
-    b._values = {}
-    b._push_ticks = None
+    b.clear_randomization()
     b.apply_randomization(values or {})
-    b._sim_dirty = True
     b.reset(SCENE, np.random.default_rng(seed))
     return b
 
@@ -58,9 +56,9 @@ def _total_mass(b):
         import pybullet as p
 
         s = b.sim
-        return sum(p.getDynamicsInfo(s.robot_id, link, physicsClientId=s.client)[0] for link in s._nominal_dynamics)
-    model, _ = b.sim._mj()
-    return float(model.body_mass[b.sim._mj_nominal().robot_bodies].sum())
+        return sum(p.getDynamicsInfo(s.robot_id, link, physicsClientId=s.client)[0] for link in s.nominal_dynamics)
+    model, _ = b.sim.mj_model_data()
+    return float(model.body_mass[b.sim.mj_nominal().robot_bodies].sum())
 
 
 def _floor_normal(b):
@@ -69,8 +67,8 @@ def _floor_normal(b):
 
         _, orn = p.getBasePositionAndOrientation(b.sim.floor_id, physicsClientId=b.sim.client)
         return np.array(p.getMatrixFromQuaternion(orn)).reshape(3, 3)[:, 2]
-    model, data = b.sim._mj()
-    return np.asarray(data.geom_xmat[b.sim._mj_nominal().floor_geom]).reshape(3, 3)[:, 2]
+    model, data = b.sim.mj_model_data()
+    return np.asarray(data.geom_xmat[b.sim.mj_nominal().floor_geom]).reshape(3, 3)[:, 2]
 
 
 def _foot_floor_friction(b):
@@ -82,8 +80,8 @@ def _foot_floor_friction(b):
         floor = p.getDynamicsInfo(s.floor_id, -1, physicsClientId=s.client)[1]
         foot = p.getDynamicsInfo(s.robot_id, s.link_index["l_foot"], physicsClientId=s.client)[1]
         return floor * foot  # Bullet's combination rule
-    model, data = b.sim._mj()
-    nominal = b.sim._mj_nominal()
+    model, data = b.sim.mj_model_data()
+    nominal = b.sim.mj_nominal()
     feet = set(nominal.foot_geoms.tolist())
     mus = [
         data.contact.friction[i, 0]
@@ -117,8 +115,8 @@ def _feet_x(b):
                 ]
             )
         )
-    _, data = b.sim._mj()
-    model, _ = b.sim._mj()
+    _, data = b.sim.mj_model_data()
+    model, _ = b.sim.mj_model_data()
     import mujoco
 
     ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, b.robot.foot_link(s)) for s in ("left", "right")]
@@ -179,8 +177,8 @@ def test_actuator_kp_and_torque_limit_and_damping_change_the_servos(env):
 
     def servo(values, error, qvel=0.0):
         _fresh(b, values)
-        model, data = b.sim._mj()
-        n = b.sim._mj_nominal()
+        model, data = b.sim.mj_model_data()
+        n = b.sim.mj_nominal()
         act, dof = int(n.actuators[0]), int(n.dofs[0])
         qadr = int(model.jnt_qposadr[model.dof_jntid[dof]])
         data.qvel[:] = 0.0
@@ -208,8 +206,8 @@ def test_torso_com_offset_leans_the_standing_robot(env):
         pitch[dx] = _pitch(b)
     assert pitch[0.03] > pitch[-0.03] + 1e-3, pitch  # COM forward: leans forward (positive fused pitch)
     if not _is_bullet(b):
-        model, _ = b.sim._mj()
-        n = b.sim._mj_nominal()
+        model, _ = b.sim.mj_model_data()
+        n = b.sim.mj_nominal()
         assert np.allclose(model.body_ipos[n.torso] - n.torso_ipos, [0.03, 0.0, 0.0])
         _fresh(b)
         assert np.allclose(model.body_ipos[n.torso], n.torso_ipos)
@@ -232,18 +230,17 @@ def test_terrain_slope_tilts_the_floor_normal_by_the_value(env):
 def _recorded_targets(b, values):
     _fresh(b, values)
     sent = []
-    original = b.sim.set_leg_targets
-    b.sim.set_leg_targets = lambda t: (sent.append(np.array(t)), original(t))
-    b.compiled_ticks = False  # the compiled control tick writes ctrl without set_leg_targets
+    original = b.sim.advance  # each tick's commanded targets, read from the state contract before its physics
+    b.sim.advance = lambda n: (sent.append(b.sim.state.last_targets()), original(n))
     try:
         b.execute(DoubleStep.from_action(np.array([0.3, 0, 0, 0.3, 0, 0]), b.robot.step_limits))
     finally:
-        del b.sim.set_leg_targets, b.compiled_ticks
+        del b.sim.advance
     return np.array(sent)
 
 
 def test_control_latency_delays_the_joint_targets_by_the_rounded_ticks(env):
-    from footsim.backends.physics3d import TrunkStabilizer
+    from footsim.backends.control import TrunkStabilizer
 
     b = env.backend
     stabilizer, b.stabilizer = b.stabilizer, TrunkStabilizer()  # open loop: targets independent of the state
@@ -308,7 +305,7 @@ def test_presets_run_reproducibly_and_do_not_compound(name):
     env = FootstepEnv(backend=name, randomization="strong")
     try:
         b = env.backend
-        nominal = b.sim._nominal_dynamics if _is_bullet(b) else None
+        nominal = b.sim.nominal_dynamics if _is_bullet(b) else None
         _, info = env.reset(seed=3)
         first = dict(info["randomization"])
         mass = _total_mass(b)
@@ -321,7 +318,7 @@ def test_presets_run_reproducibly_and_do_not_compound(name):
         assert again == {k: v for k, v in first.items() if k != "push_force"}
         assert _total_mass(b) == pytest.approx(mass, rel=1e-9)  # nominal x the same draw, not compounded
         if nominal is not None:
-            assert b.sim._nominal_dynamics == nominal
+            assert b.sim.nominal_dynamics == nominal
     finally:
         env.close()
     env = FootstepEnv(backend=name, randomization="default")
@@ -349,7 +346,7 @@ def test_a_sim_without_a_term_makes_the_driver_refuse_it():
     from footsim.backends.physics3d import DRIVER_TERMS, PhysicsSim
 
     class Bare(PhysicsSim):
-        build = set_obstacles = reset_robot = set_leg_targets = advance = base_pose = obstacle_contact = None
+        build = set_obstacles = reset_robot = advance = base_pose = obstacle_contact = None
 
     assert Bare.capabilities == frozenset()
     with pytest.raises(ValueError, match="cannot apply"):

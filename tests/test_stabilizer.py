@@ -5,7 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from footsim.backends.physics3d import TrunkStabilizer, fused_roll_pitch
+from footsim.backends.control import TrunkStabilizer, base_tilt, fused_roll_pitch
+from footsim.calibration.walkcheck import make_backend
 from footsim.walk.ik import LEG_JOINT_NAMES
 
 
@@ -52,7 +53,6 @@ def test_mujoco_hip_roll_feedback_reduces_roll_under_a_side_push():
     lateral push than open loop (a wrong sign would amplify the lean)."""
     pytest.importorskip("mujoco")
     from footsim import config as fconf
-    from footsim.backends.physics3d import fused_roll_pitch
     from footsim.geometry import Pose2D
     from footsim.scene import Scene
     from footsim.walk.footsteps import DoubleStep
@@ -85,8 +85,6 @@ def test_step_result_reports_the_trunk_tilt():
     """The driver reports the fused roll/pitch at the end of a double step and the largest tilt
     seen during it, from its own checks of the base (independent check: the sim's base pose)."""
     pytest.importorskip("mujoco")
-    from footsim.backends.physics3d import fused_roll_pitch
-    from footsim.calibration.walkcheck import make_backend
     from footsim.geometry import Pose2D
     from footsim.scene import Scene
     from footsim.walk.footsteps import DoubleStep
@@ -104,10 +102,9 @@ def test_step_result_reports_the_trunk_tilt():
 
 
 def test_quaternion_tilt_matches_the_rotation_matrix_route():
-    """MuJoCo/dm-control read the tilt straight from the quaternion; compare with MuJoCo's own
-    quaternion → matrix conversion followed by the fused angles."""
+    """The control law reads the tilt straight from the base quaternion; compare with MuJoCo's
+    own quaternion → matrix conversion followed by the fused angles."""
     mujoco = pytest.importorskip("mujoco")
-    from footsim.backends.mujoco_backend import quat_fused_roll_pitch
 
     rng = np.random.default_rng(0)
     for _ in range(200):
@@ -115,4 +112,17 @@ def test_quaternion_tilt_matches_the_rotation_matrix_route():
         q /= np.linalg.norm(q)
         mat = np.zeros(9)
         mujoco.mju_quat2Mat(mat, q)
-        assert quat_fused_roll_pitch(q) == pytest.approx(fused_roll_pitch(mat.reshape(3, 3)), abs=1e-12)
+        assert base_tilt(q, False, None) == pytest.approx(fused_roll_pitch(mat.reshape(3, 3)), abs=1e-12)
+
+
+def test_quaternion_tilt_of_a_body_in_another_frame():
+    """Bullet's quaternion (x, y, z, w) is the orientation of the base's inertial frame; the tilt
+    is the link frame's: R_link = R_body @ frameᵀ (scipy's independent conversion)."""
+    rotation = pytest.importorskip("scipy.spatial.transform").Rotation
+    rng = np.random.default_rng(1)
+    for _ in range(200):
+        body = rotation.random(random_state=rng)
+        frame = rotation.random(random_state=rng).as_matrix()
+        link = body.as_matrix() @ frame.T
+        expected = fused_roll_pitch(link)
+        assert base_tilt(body.as_quat(), True, np.ascontiguousarray(frame)) == pytest.approx(expected, abs=1e-12)

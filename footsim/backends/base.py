@@ -68,7 +68,8 @@ class Backend(ABC):
         return None
 
     def close(self) -> None:
-        pass
+        """Release what the simulator holds (nothing by default)."""
+        return None
 
 
 @dataclass(frozen=True)
@@ -79,9 +80,9 @@ class BackendEntry:
 
 BACKENDS: dict[str, BackendEntry] = {
     "pymunk": BackendEntry("footsim.backends.pymunk2d:Pymunk2DBackend", None),
-    "mujoco": BackendEntry("footsim.backends.mujoco_backend:MujocoBackend", "mujoco"),
-    "dm_control": BackendEntry("footsim.backends.dm_control_backend:DmControlBackend", "dm_control"),
-    "pybullet": BackendEntry("footsim.backends.pybullet_backend:PybulletBackend", "pybullet"),
+    "mujoco": BackendEntry("footsim.backends.mujoco_family.mujoco_sim:MujocoBackend", "mujoco"),
+    "dm_control": BackendEntry("footsim.backends.mujoco_family.dm_control_sim:DmControlBackend", "dm_control"),
+    "pybullet": BackendEntry("footsim.backends.bullet.sim:PybulletBackend", "pybullet"),
 }
 
 _SIMULATOR_MODULES = {"mujoco": "mujoco", "dm_control": "dm_control", "pybullet": "pybullet"}

@@ -2,10 +2,10 @@
 
 ``bench_backend(name, repeats)`` builds the backend the way ``footsim-walkcheck`` does (the walk
 preset tuned for it), walks ``repeats`` double steps of a moderate forward/turning pattern and
-records every control tick's joint targets.  The timed run alternates, double step by double
+records every control tick's leg targets.  The timed run alternates, double step by double
 step, between the env and a replay of exactly those targets on a second instance of the backend
-through the sim's physics verbs (``set_leg_targets`` + ``advance``) — the same physics ticks
-without the walk engine, the checks or any bookkeeping.  Rates are per CPU second of this
+through the sim's verbs (``set_leg_targets`` + ``advance``) — the same physics ticks without the
+walk engine, the control law, the checks or any bookkeeping.  Rates are per CPU second of this
 process (``time.process_time``), so other jobs on the machine do not count; wall-clock rates
 are reported too.  Resident memory is taken with one backend built (before the replay copy).
 """
@@ -59,24 +59,23 @@ def bench_backend(name: str, repeats: int = 100, seed: int = 0) -> dict:
         sim = getattr(backend, "sim", None)
         steps = [DoubleStep.from_action(PATTERN[i % len(PATTERN)], backend.robot.step_limits) for i in range(repeats)]
 
-        # Warm-up: the full double steps once, recording each control tick's joint targets per
-        # double step (the compiled control tick bypasses set_leg_targets, so this pass runs
-        # the verbs: the same commands, tests/test_kernels3d.py).
+        # Warm-up: the full double steps once, recording each control tick's leg targets per
+        # double step (what the control law commanded before the servo feed-forward, read from
+        # the state contract just before each tick's physics).
         backend.reset(scene, np.random.default_rng(seed))
         recorded: list[list[np.ndarray]] = []
         if sim is not None:
-            original = sim.set_leg_targets
+            original = sim.advance
 
-            def recording(targets, _orig=original):
-                recorded[-1].append(np.array(targets, dtype=float))
-                _orig(targets)
+            def recording(n_steps, _orig=original):
+                recorded[-1].append(sim.state.last_targets())
+                _orig(n_steps)
 
-            sim.set_leg_targets = recording
-            backend.compiled_ticks = False
+            sim.advance = recording
             for ds in steps:
                 recorded.append([])
                 backend.execute(ds)
-            del sim.set_leg_targets, backend.compiled_ticks
+            del sim.advance
         rss_env = _rss_mb()
         # Timed: each env double step (walk engine + IK + physics + checks) is followed by the
         # replay of its physics ticks on a second instance of the same backend (set_leg_targets

@@ -1,9 +1,14 @@
 """The shared 3D driver: walk engine → leg IK → joint targets → physics ticks → truth.
 
-A 3D backend subclasses ``Physics3DBackend`` and implements only the physics verbs of
-``PhysicsSim`` (build the world, set joint targets, advance, read the base pose, contacts, …).
-Everything else — the walk-engine loop, fall detection by fused angles, obstacle-contact
-bookkeeping, timing and the planar pose — lives here, once.
+A 3D backend subclasses ``Physics3DBackend`` and gives it a ``PhysicsSim``: the physics verbs
+(build the world, place obstacles, reset the robot, advance, read the base pose, contacts, …)
+and a small state contract, :class:`SimState`: the arrays holding the base orientation and the
+leg commands (views of ``mjData`` for the MuJoCo family; arrays the sim fills and sends for
+PyBullet).  The driver's one control tick is: read the state (a sim whose arrays are not live
+views refreshes them) → the control law (``footsim.backends.control.control_tick``: tilt,
+stabilizer, latency, servo feed-forward, command write) → send the commands (the same) →
+advance.  The walk-engine loop, the periodic state check (fall by fused tilt, sim errors),
+obstacle-contact bookkeeping, timing and the planar pose live here, once.
 """
 
 from __future__ import annotations
@@ -12,26 +17,47 @@ import dataclasses
 import inspect
 import math
 from abc import ABC, abstractmethod
-from collections import deque
 from collections.abc import Callable
-from functools import partial
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from footsim.backends.base import Backend, RenderOverlay, StepResult
+from footsim.backends.control import (
+    TrunkStabilizer,
+    all_finite,
+    control_tick,
+    fused_roll_pitch,
+    state_ok,
+    write_targets,
+)
+from footsim.compiled import typed_entry
 from footsim.geometry import Pose2D
-from footsim.kernels3d import all_finite, control_tick, quick_status, stabilized_targets
 from footsim.robots.spec import RobotSpec
 from footsim.scene import Scene
-from footsim.walk.engine import QuinticWalk
+from footsim.walk.engine import QuinticWalk, WalkTrajectory
 from footsim.walk.footsteps import DoubleStep, FootstepGeometry, Side
 from footsim.walk.ik import LEG_JOINT_NAMES
 from footsim.walk.params import WalkParams
 
-#: Randomization terms the driver applies itself, on every 3D backend (the sim's own terms are
-#: in ``PhysicsSim.capabilities``).
+#: Randomization terms the driver applies itself, on every 3D backend.
 DRIVER_TERMS = frozenset(
     {"control_latency", "push_force", "push_duration", "push_interval", "walk_freq_scale", "walk_trunk_height_scale"}
+)
+#: The physics randomization terms of the 3D sims (``PhysicsSim.apply_physics_randomization``):
+#: one vocabulary; a sim that cannot apply one of them leaves it out of its ``capabilities``.
+PHYSICS_TERMS = frozenset(
+    {
+        "floor_friction",
+        "foot_friction",
+        "link_mass_scale",
+        "torso_com_offset_x",
+        "torso_com_offset_y",
+        "actuator_kp_scale",
+        "torque_limit_scale",
+        "joint_damping_scale",
+        "terrain_slope",
+    }
 )
 #: Push timing when a preset sets ``push_force`` but not these [s].
 DEFAULT_PUSH_DURATION, DEFAULT_PUSH_INTERVAL = 0.1, 2.0
@@ -39,18 +65,6 @@ DEFAULT_PUSH_DURATION, DEFAULT_PUSH_INTERVAL = 0.1, 2.0
 #: Fused roll or pitch beyond this counts as a fall [rad].  Walking tilts stay below ~0.25 rad;
 #: past 0.7 rad (40°) the open-loop walk engine cannot recover.
 DEFAULT_FALL_THRESHOLD = 0.7
-
-
-def fused_roll_pitch(rotation: np.ndarray) -> tuple[float, float]:
-    """Fused roll and pitch (Allgeuer & Behnke) from a body-to-world rotation matrix.
-
-    Unlike Euler angles they do not depend on yaw or on the order of rotations: they are the
-    angles between the world's vertical and the body's y–z plane (pitch) and x–z plane (roll).
-    Valid for the upper hemisphere; an upside-down body (R[2,2] < 0) is fallen anyway.
-    """
-    pitch = math.asin(max(-1.0, min(1.0, -float(rotation[2, 0]))))
-    roll = math.asin(max(-1.0, min(1.0, float(rotation[2, 1]))))
-    return roll, pitch
 
 
 def levelling_rotation(sole_rotation: np.ndarray) -> np.ndarray:
@@ -61,55 +75,6 @@ def levelling_rotation(sole_rotation: np.ndarray) -> np.ndarray:
     yaw = math.atan2(sole[1, 0], sole[0, 0])
     level = np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0], [0.0, 0.0, 1.0]])
     return level @ sole.T
-
-
-class TrunkStabilizer:
-    """IMU feedback on the trunk orientation, in joint space (the Bit-Bots' walk has the same
-    idea as PID controllers on the fused trunk pitch and roll).
-
-    Each control tick the error between the measured fused roll/pitch of the base and the
-    engine's planned trunk roll/pitch is multiplied by a gain [rad/rad] and added to the hip
-    and ankle roll/pitch targets of both legs.  With the legs' +x (roll) and +y (pitch) joint
-    axes, a positive hip gain turns the trunk back towards its planned orientation relative to
-    the legs; an ankle gain tilts the soles against the lean.  All gains 0 = open loop (the
-    engine's targets untouched, no extra base reads).
-    """
-
-    GAINS = ("hip_roll", "hip_pitch", "ankle_roll", "ankle_pitch")
-    _HIP_ROLL, _HIP_PITCH, _ANKLE_PITCH, _ANKLE_ROLL = [1, 7], [2, 8], [4, 10], [5, 11]  # LEG_JOINT_NAMES
-
-    def __init__(
-        self, hip_roll: float = 0.0, hip_pitch: float = 0.0, ankle_roll: float = 0.0, ankle_pitch: float = 0.0
-    ):
-        gains = {"hip_roll": hip_roll, "hip_pitch": hip_pitch, "ankle_roll": ankle_roll, "ankle_pitch": ankle_pitch}
-        for key, value in gains.items():
-            if not (isinstance(value, (int, float)) and math.isfinite(value)):
-                raise ValueError(f"backend.stabilizer.{key} must be a finite number, got {value!r}")
-        self.hip_roll, self.hip_pitch = float(hip_roll), float(hip_pitch)
-        self.ankle_roll, self.ankle_pitch = float(ankle_roll), float(ankle_pitch)
-        self.active = any(v != 0.0 for v in gains.values())
-        # Per-joint gains (LEG_JOINT_NAMES order) so a correction is two vector operations per tick;
-        # rows of one (2, 12) array, as the compiled tick (footsim.kernels3d.control_tick) takes them.
-        self.gains = np.zeros((2, 12))
-        self._roll_gains, self._pitch_gains = self.gains  # views
-        self._roll_gains[self._HIP_ROLL], self._roll_gains[self._ANKLE_ROLL] = self.hip_roll, self.ankle_roll
-        self._pitch_gains[self._HIP_PITCH], self._pitch_gains[self._ANKLE_PITCH] = self.hip_pitch, self.ankle_pitch
-
-    @classmethod
-    def from_config(cls, config) -> TrunkStabilizer:
-        if config is None:
-            return cls()
-        config = dict(config)
-        unknown = sorted(set(config) - set(cls.GAINS))
-        if unknown:
-            raise ValueError(f"backend.stabilizer: unknown key(s) {unknown}; valid: {list(cls.GAINS)}")
-        return cls(**config)
-
-    def correct(
-        self, targets: np.ndarray, tilt: tuple[float, float], planned_roll: float, planned_pitch: float
-    ) -> np.ndarray:
-        """``targets`` (12,) corrected for the measured fused ``tilt`` = (roll, pitch) (a new array)."""
-        return targets + (self._roll_gains * (tilt[0] - planned_roll) + self._pitch_gains * (tilt[1] - planned_pitch))
 
 
 def quat_to_matrix(q: np.ndarray) -> np.ndarray:
@@ -124,10 +89,67 @@ def quat_to_matrix(q: np.ndarray) -> np.ndarray:
     )
 
 
-class PhysicsSim(ABC):
-    """The physics verbs a 3D backend provides.  Joints are addressed by name at ``build``."""
+@dataclass(eq=False)
+class SimState:
+    """A 3D sim's state contract: the arrays the driver's control law writes and its state
+    check reads (``footsim.backends.control``).  Made by the sim at ``build``.
 
-    #: Physics randomization terms this sim applies in ``apply_physics_randomization``.
+    With ``live`` the arrays are views of the simulator's own state (MuJoCo's ``mjData``): the
+    driver reads and writes them directly.  Otherwise the sim refreshes them in
+    ``PhysicsSim.read_state`` and sends ``command`` in ``PhysicsSim.write_command``.
+    """
+
+    quat: np.ndarray  #: (4,) orientation of the base body the simulator integrates
+    position: np.ndarray  #: (3,) its position
+    command: np.ndarray  #: the leg commands: the simulator's actuator inputs or a buffer sent to it
+    leg_ids: np.ndarray  #: ``command``'s index of each leg joint (``LEG_JOINT_NAMES`` order)
+    finite: tuple[np.ndarray, ...]  #: every value that must stay finite
+    live: bool = True
+    w_last: bool = False  #: ``quat`` is (x, y, z, w) rather than (w, x, y, z)
+    #: The integrated body's frame in the base link's: rotation (3, 3) and origin (3,); None: the link.
+    frame: np.ndarray | None = None
+    offset: np.ndarray | None = None
+    #: The sim's own quaternion → matrix (``base_pose``) divides by |q|² (Bullet's does).
+    matrix_normalizes: bool = False
+    velocity: np.ndarray | None = None  #: (6,) linear and angular velocity of the base, checked against max_speed
+    max_speed: float = math.inf  #: [m/s]; angular: 6 × this [rad/s]
+    warnings: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int32))  #: simulator warning counters
+    warning_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))  #: the fatal ones
+    fault: np.ndarray = field(default_factory=lambda: np.zeros(1, dtype=np.int8))  #: [0] ≠ 0: the sim failed
+    feed_forward: np.ndarray | None = None  #: the servo feed-forward's (2, 12) [gain, previous targets]
+
+    def check_args(self, out_of_bounds: float, tilt: np.ndarray) -> tuple:
+        """The arguments of ``control.state_ok`` for this state (``tilt``: (2,) receives the tilt)."""
+        return (
+            self.fault,
+            self.warnings,
+            self.warning_ids,
+            self.finite,
+            self.velocity,
+            self.max_speed,
+            self.position,
+            self.quat,
+            self.w_last,
+            self.matrix_normalizes,
+            self.frame,
+            self.offset,
+            float(out_of_bounds),
+            tilt,
+        )
+
+    def last_targets(self) -> np.ndarray:
+        """The leg targets of the last command, before the servo feed-forward (a copy)."""
+        if self.feed_forward is not None:
+            return self.feed_forward[1].copy()
+        return self.command[self.leg_ids].copy()
+
+
+class PhysicsSim(ABC):
+    """The physics verbs and the state contract (``state``, a :class:`SimState`) a 3D sim provides.
+    Joints are addressed by name at ``build``."""
+
+    #: Physics randomization terms this sim applies in ``apply_physics_randomization`` (all of
+    #: ``PHYSICS_TERMS`` for the simulators here; none for a sim without randomization verbs).
     capabilities: frozenset[str] = frozenset()
 
     @abstractmethod
@@ -142,47 +164,24 @@ class PhysicsSim(ABC):
     def reset_robot(self, base_position: np.ndarray, joint_positions: dict[str, float]) -> None:
         """Put the robot at ``base_position`` (upright, facing +x) with these joint angles, at rest."""
 
-    @abstractmethod
+    #: The state contract (see :class:`SimState`); set by ``build``.
+    state: SimState
+
+    def read_state(self, velocity: bool = False) -> None:
+        """Refresh ``state``'s orientation and position (and, with ``velocity``, the velocity)
+        from the simulator.  Nothing to do for live views (the default)."""
+        return None
+
+    def write_command(self) -> None:
+        """Send ``state.command`` to the simulator.  Nothing to do for live views (the default)."""
+        return None
+
     def set_leg_targets(self, targets: np.ndarray) -> None:
-        """Position targets for the 12 leg joints, in ``LEG_JOINT_NAMES`` order."""
-
-    def control_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None] | None:
-        """For a sim whose state lives in numpy arrays: ``(quat, ctrl, leg_ids, feed_forward)`` so
-        that the driver's compiled control tick (``footsim.kernels3d.control_tick``) reads the
-        tilt and writes the leg commands itself, with the results of ``base_tilt`` and
-        ``set_leg_targets``.  ``quat``: a live view of the base orientation (w, x, y, z);
-        ``ctrl``: the live actuator-input array; ``leg_ids``: its index of each leg joint;
-        ``feed_forward``: the servo feed-forward's (2, 12) [gain, previous] or None.  None (the
-        default): the driver calls the verbs."""
-        return None
-
-    def status_arrays(self) -> tuple | None:
-        """For a sim whose state lives in numpy arrays: ``(root_q, qpos, qvel, warnings,
-        warning_ids)`` (live views: the free joint's 7 coordinates, the whole state, the
-        warning counters and the fatal ones' indices) so that the driver's periodic check is
-        one compiled call (``footsim.kernels3d.quick_status``) while all is well.  None (the
-        default, or while the sim holds an error of its own): the driver calls the verbs."""
-        return None
-
-    def stabilized_ticks(
-        self, targets: np.ndarray, trunk: np.ndarray, gains: np.ndarray, substeps: int
-    ) -> Callable[[int, int], None] | None:
-        """For a sim that can run stabilized control ticks cheaper than the verbs: ``run(k0, k1)``
-        doing control ticks ``k0 … k1 − 1``, each commanding ``targets[k]`` corrected by the
-        stabilizer ``gains`` for the measured tilt against ``trunk[k]`` and then ``substeps``
-        physics timesteps (the result of ``base_tilt`` → ``TrunkStabilizer.correct`` →
-        ``set_leg_targets`` → ``advance``, tick by tick).  None (the default): the driver calls
-        the verbs."""
-        return None
-
-    def status_ok(self, out_of_bounds: float, tilt: np.ndarray) -> bool:
-        """The driver's periodic check while all is well, in one cheap call: True, with the base's
-        fused (roll, pitch) written into ``tilt``, when the state is sound (finite, within
-        ``out_of_bounds``, right side up, no error of the sim's own); False when the driver should
-        run its full check, which names the problem.  Default: ``kernels3d.quick_status`` on
-        ``status_arrays`` (False without them)."""
-        arrays = self.status_arrays()
-        return arrays is not None and quick_status(*arrays, out_of_bounds, tilt)
+        """Command these 12 leg targets (``LEG_JOINT_NAMES`` order) through the servo
+        feed-forward, outside the control ticks (standing at reset, replays)."""
+        s = self.state
+        write_targets(np.asarray(targets, dtype=float), s.feed_forward, s.command, s.leg_ids)
+        self.write_command()
 
     @abstractmethod
     def advance(self, n_steps: int) -> None:
@@ -191,10 +190,6 @@ class PhysicsSim(ABC):
     @abstractmethod
     def base_pose(self) -> tuple[np.ndarray, np.ndarray]:
         """Base (trunk) position (3,) and body-to-world rotation matrix (3, 3)."""
-
-    def base_tilt(self) -> tuple[float, float]:
-        """Fused (roll, pitch) of the base; a sim may override it with a cheaper read."""
-        return fused_roll_pitch(self.base_pose()[1])
 
     @abstractmethod
     def obstacle_contact(self) -> bool:
@@ -222,7 +217,8 @@ class PhysicsSim(ABC):
         return None
 
     def close(self) -> None:
-        pass
+        """Release what the simulator holds (nothing by default)."""
+        return None
 
 
 class Physics3DBackend(Backend):
@@ -234,10 +230,6 @@ class Physics3DBackend(Backend):
     """
 
     kind = "3d"
-    #: Use the compiled control tick where the sim offers ``control_arrays`` (False: always the
-    #: verbs; same results, the tests compare the two).
-    compiled_ticks = True
-    collision_ends_episode = False  # thesis: 3D contacts destabilise the robot, they do not end the episode
     sim_class: type[PhysicsSim] | None = None
     default_control_dt = 0.005
     default_physics_dt = 0.005
@@ -317,7 +309,7 @@ class Physics3DBackend(Backend):
                 f"backend.control_dt ({control_dt}) must be a positive multiple of backend.physics_dt ({physics_dt})"
             )
         if not 0 < fall_threshold < math.pi / 2:
-            raise ValueError(f"backend.fall_threshold must be in (0, pi/2) rad, got {fall_threshold!r}")
+            raise ValueError(f"fall_threshold must be in (0, pi/2) rad, got {fall_threshold!r}")
         if int(contact_check_every) < 1:
             raise ValueError(f"backend.contact_check_every must be >= 1, got {contact_check_every!r}")
         self.robot, self.walk, self.sim = robot, walk, sim
@@ -342,7 +334,10 @@ class Physics3DBackend(Backend):
         self._sim_values: dict[str, float] = {}  # what the sim was last given
         self._sim_dirty = False
         self._latency = 0
-        self._delay: deque | None = None  # the last latency + 1 joint targets
+        self._delay: np.ndarray | None = None  # the latency line: targets not yet sent
+        self._delay_slot = np.zeros(2, dtype=np.int64)  # [row of the oldest target, fill the line first]
+        self._entries: dict = {}  # compiled entries of the control tick and the state check
+        self._check: tuple = (None, None, ())  # the state check's entry, state and arguments
         self._push_ticks: tuple[int, int] | None = None  # (interval, duration) in control ticks
         self._push_force = 0.0
         self._tick = 0  # control ticks since reset
@@ -350,7 +345,7 @@ class Physics3DBackend(Backend):
         self._rng = np.random.default_rng(0)
         self.randomization_detail: dict[str, float] = {}  # directions drawn from the backend rng
         self._tilt, self._max_tilt = (0.0, 0.0), 0.0  # fused (roll, pitch) at the last check; max this step
-        self._tilt_buffer = np.zeros(2)  # quick_status writes the tilt here
+        self._tilt_buffer = np.zeros(2)  # state_ok writes the tilt here
 
     # -- randomization --------------------------------------------------------------------
     @property
@@ -383,6 +378,15 @@ class Physics3DBackend(Backend):
         elif "push_duration" in values or "push_interval" in values:
             raise ValueError("randomization push_duration / push_interval need push_force")
 
+    def clear_randomization(self) -> None:
+        """Forget every value drawn so far: the driver terms are off at once, the sim's terms are
+        back at nominal at the next ``reset`` or ``execute``."""
+        self._values = {}
+        self._latency = 0
+        self._push_ticks = None
+        self._push_force = 0.0
+        self._sim_dirty = True
+
     def _apply_sim_randomization(self, direction_rng: np.random.Generator | None) -> None:
         sim_values = {k: v for k, v in self._values.items() if k in self.sim.capabilities}
         if "terrain_slope" in sim_values:
@@ -408,22 +412,22 @@ class Physics3DBackend(Backend):
                 walk, self.geometry, self.robot.leg_geometry, self.control_dt, joint_limits=self._joint_limits
             )
 
-    def _send_targets(self, target: np.ndarray) -> None:
-        """Joint targets through the latency line (``control_latency`` ticks late) and the push
-        schedule; one call per control tick."""
-        if self._latency:
-            line = self._delay
-            if line is None or line.maxlen != self._latency + 1:  # latency redrawn mid-episode
-                line = self._delay = deque(
-                    [line[-1] if line else target] * (self._latency + 1), maxlen=self._latency + 1
-                )
-            line.append(target)
-            target = line[0]
-        self.sim.set_leg_targets(target)
-        if self._push_ticks is not None:
-            self._push_tick()
-        else:
-            self._tick += 1
+    def _delay_line(self) -> np.ndarray | None:
+        """The latency line for this double step's ticks: ``control_latency`` rows of targets not
+        yet sent (None without latency).  A latency redrawn mid-episode starts a new line filled
+        with the newest target of the old one (with none: with its first tick's target)."""
+        latency = self._latency
+        if not latency:
+            self._delay = None
+        elif self._delay is None or len(self._delay) != latency:
+            old, slot = self._delay, self._delay_slot
+            self._delay = np.zeros((latency, 12))
+            if old is None:
+                slot[1] = 1  # control_tick fills the line with its first target
+            else:
+                self._delay[:] = old[(slot[0] - 1) % len(old)]
+            slot[0] = 0
+        return self._delay
 
     def _push_tick(self) -> None:
         """The push schedule at this control tick (start or end a push); counts the tick."""
@@ -442,50 +446,55 @@ class Physics3DBackend(Backend):
             self._next_push = tick + interval
         self._tick += 1
 
-    def _ticks(self, trajectory) -> Callable[[int, int], None]:
-        """This double step's ticks: ``run(k0, k1)`` does control ticks ``k0 … k1 − 1``, each
-        commanding its joint targets (stabilizer correction, latency, feed-forward, push
-        schedule) and then advancing the physics one control period."""
+    def _ticks(self, trajectory: WalkTrajectory, stabilized: bool = True) -> Callable[[int, int], None]:
+        """This trajectory's control ticks: ``run(k0, k1)`` does ticks ``k0 … k1 − 1``, each the
+        one tick of the module docstring: read the state, the control law (stabilizer unless
+        ``stabilized`` is False, latency, servo feed-forward), send the commands, the push
+        schedule, and the physics of one control period."""
+        s = self.sim.state
         targets, trunk = trajectory.joint_targets, trajectory.trunk_in_support  # roll, pitch: as in .trunk
-        gains = self.stabilizer.gains if self.stabilizer.active else None
-        substeps, advance = self.substeps, self.sim.advance
-        plain = not (self._latency or self._push_ticks is not None)
-        if plain and gains is not None and self.compiled_ticks:
-            # The sim's own loop: fewer Python calls per tick than control + advance (PyBullet).
-            run = self.sim.stabilized_ticks(targets, trunk, gains, substeps)
-            if run is not None:
-                return run
-        control = self._control(targets, trunk, gains, plain)
+        gains = self.stabilizer.gains if (stabilized and self.stabilizer.active) else None
+        delay, slot = self._delay_line(), self._delay_slot
+        quat, w_last, frame, feed_forward, command, leg_ids = (
+            s.quat,
+            s.w_last,
+            s.frame,
+            s.feed_forward,
+            s.command,
+            s.leg_ids,
+        )
+        layouts = tuple(
+            (a.dtype, a.ndim, a.flags.c_contiguous, a.flags.f_contiguous, a.flags.writeable) for a in (targets, trunk)
+        )
+        key = (control_tick, s, gains is None, delay is None, layouts)  # what decides the compiled types
+        args = (targets, trunk, 0, gains, quat, w_last, frame, delay, slot, feed_forward, command, leg_ids)
+        tick = self._typed(control_tick, key, args)
+        read = None if (s.live or gains is None) else self.sim.read_state
+        write = None if s.live else self.sim.write_command
+        push = None if self._push_ticks is None else self._push_tick
+        advance, substeps = self.sim.advance, self.substeps
 
         def run(k0: int, k1: int) -> None:
             for k in range(k0, k1):
-                control(k)
+                if read is not None:
+                    read()
+                tick(targets, trunk, k, gains, quat, w_last, frame, delay, slot, feed_forward, command, leg_ids)
+                if write is not None:
+                    write()
+                if push is not None:
+                    push()
                 advance(substeps)
 
         return run
 
-    def _control(self, targets, trunk, gains, plain):
-        """``control(k)`` commands tick ``k``'s joint targets (no physics)."""
-        arrays = self.sim.control_arrays() if self.compiled_ticks and not self._latency else None
-        if arrays is not None:
-            # One compiled call per tick does what base_tilt + correct + set_leg_targets do (~1 µs
-            # instead of ~10 µs of numpy on 12-vectors; mj_step is ~50 µs).  The latency line
-            # stays in Python (randomized runs only).
-            quat, ctrl, leg_ids, feed_forward = arrays
-            tick = partial(control_tick, targets, trunk, quat, gains, feed_forward, ctrl, leg_ids)
-            if self._push_ticks is None:
-                return tick
-
-            def tick_and_push(k):
-                tick(k)
-                self._push_tick()
-
-            return tick_and_push
-        set_targets = self.sim.set_leg_targets if plain else self._send_targets
-        if gains is None:
-            return lambda k: set_targets(targets[k])
-        base_tilt = self.sim.base_tilt  # TrunkStabilizer.correct, compiled: stabilized_targets
-        return lambda k: set_targets(stabilized_targets(targets, trunk, gains, k, *base_tilt()))
+    def _typed(self, kernel, key: tuple, args: tuple):
+        """``kernel``'s compiled code for the types of ``args`` (``footsim.compiled.typed_entry``), kept
+        under ``key``: whatever decides those types (the state contract's arrays keep theirs; the
+        optional ones are None or not)."""
+        entry = self._entries.get(key)
+        if entry is None:
+            entry = self._entries[key] = typed_entry(kernel, *args)
+        return entry
 
     # -- episode --------------------------------------------------------------------------
     def reset(self, scene: Scene, rng: np.random.Generator) -> Pose2D:
@@ -501,7 +510,8 @@ class Physics3DBackend(Backend):
         joints.update(zip(LEG_JOINT_NAMES, standing.tolist()))
         self.sim.reset_robot(np.array([0.0, 0.0, self.walk_current.trunk_height]), joints)
         self.sim.set_leg_targets(standing)
-        self._delay = deque([standing] * (self._latency + 1), maxlen=self._latency + 1) if self._latency else None
+        self._delay = np.tile(standing, (self._latency, 1)) if self._latency else None
+        self._delay_slot[:] = 0
         self._tick = 0
         self._push_end = -1
         if self._push_ticks is not None:
@@ -561,9 +571,17 @@ class Physics3DBackend(Backend):
 
     def _status(self) -> tuple[str | None, bool]:
         """``(sim error or None, fallen)``; also records the fused roll/pitch.  While all is well
-        one compiled call does it (the same values as :meth:`_full_status`, ~1 µs instead of
-        ~20 µs, 12 times per double step); otherwise the full check names the problem."""
-        if self.sim.status_ok(self.out_of_bounds, self._tilt_buffer):
+        one compiled call over the state contract does it (``control.state_ok``: the same values
+        as :meth:`_full_status`); otherwise the full check names the problem."""
+        s = self.sim.state
+        if not s.live:
+            self.sim.read_state(velocity=True)
+        check, state, args = self._check
+        if state is not s:  # the arguments are the contract's arrays: built once per state
+            args = s.check_args(self.out_of_bounds, self._tilt_buffer)
+            check = self._typed(state_ok, (state_ok, s), args)
+            self._check = check, s, args
+        if check(*args):
             return None, self._record_tilt(float(self._tilt_buffer[0]), float(self._tilt_buffer[1]))
         return self._full_status()
 
@@ -590,14 +608,9 @@ class Physics3DBackend(Backend):
         return None, self._record_tilt(*fused_roll_pitch(rotation))
 
     def stop_walking(self) -> float:
-        """Run the engine's stop sequence (back to standing); returns its duration [s]."""
+        """Run the engine's stop sequence (back to standing, open loop); returns its duration [s]."""
         trajectory = self.engine.stop()
-        set_targets = (
-            self._send_targets if (self._latency or self._push_ticks is not None) else self.sim.set_leg_targets
-        )
-        for target in trajectory.joint_targets:
-            set_targets(target)
-            self.sim.advance(self.substeps)
+        self._ticks(trajectory, stabilized=False)(0, len(trajectory))
         return len(trajectory) * self.control_dt
 
     def hold(self, seconds: float) -> None:
@@ -608,4 +621,6 @@ class Physics3DBackend(Backend):
         return self.sim.render(overlay, *self.render_size)
 
     def close(self) -> None:
+        self._entries.clear()  # they hold the sim's state arrays
+        self._check = (None, None, ())
         self.sim.close()

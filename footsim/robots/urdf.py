@@ -20,7 +20,10 @@ restricts self-collision to the two lower legs/feet (see ``footsim.robots.mjcf``
 
 from __future__ import annotations
 
+import math
 import xml.etree.ElementTree as ET
+
+import numpy as np
 
 from footsim.robots.spec import Box, Capsule, Cylinder, Link, Origin, RobotSpec, Side, Sphere, sole_frame_name
 
@@ -74,8 +77,32 @@ def _link(robot: ET.Element, link: Link) -> None:
             index += 1
 
 
-def build_urdf(spec: RobotSpec) -> ET.Element:
-    """The ``<robot>`` element of ``spec``'s URDF."""
+def _rpy(rotation: np.ndarray) -> tuple[float, float, float]:
+    """URDF roll-pitch-yaw of a rotation matrix (R = Rz(y) Ry(p) Rx(r))."""
+    pitch = math.asin(max(-1.0, min(1.0, -float(rotation[2, 0]))))
+    return (math.atan2(rotation[2, 1], rotation[2, 2]), pitch, math.atan2(rotation[1, 0], rotation[0, 0]))
+
+
+def _weld_upper_body(robot: ET.Element, spec: RobotSpec) -> None:
+    """Make the arm and head joints fixed joints at their walk-ready angles (folded into the joint
+    origin), so a loader that merges fixed links (PyBullet) merges them into the torso."""
+    upper_body = set(spec.upper_body_joint_names)
+    for element in robot.findall("joint"):
+        name = element.get("name")
+        if element.get("type") != "revolute" or name not in upper_body:
+            continue
+        rotation = spec.walk_ready_rotation(name)
+        element.set("type", "fixed")
+        for tag in ("axis", "limit", "dynamics"):
+            child = element.find(tag)
+            if child is not None:
+                element.remove(child)
+        element.find("origin").set("rpy", _fmt(*_rpy(rotation)))
+
+
+def build_urdf(spec: RobotSpec, rigid_upper_body: bool = False) -> ET.Element:
+    """The ``<robot>`` element of ``spec``'s URDF; with ``rigid_upper_body`` the arm and head
+    joints are welded at their walk-ready angles (as the MJCF's ``rigid_upper_body``)."""
     if not spec.joints:
         raise ValueError(f"robot {spec.name!r} has no kinematic model to build")
     robot = ET.Element("robot", name=spec.name)
@@ -109,15 +136,17 @@ def build_urdf(spec: RobotSpec) -> ET.Element:
         _origin(inertial, Origin())
         ET.SubElement(inertial, "mass", value="0")
         ET.SubElement(inertial, "inertia", ixx="0", ixy="0", ixz="0", iyy="0", iyz="0", izz="0")
-        frame_joint = ET.SubElement(robot, "joint", name=f"{name}_frame", type="fixed")
-        ET.SubElement(frame_joint, "parent", link=foot)
-        ET.SubElement(frame_joint, "child", link=name)
-        _origin(frame_joint, Origin(offset))
+        joint = ET.SubElement(robot, "joint", name=f"{name}_frame", type="fixed")
+        ET.SubElement(joint, "parent", link=foot)
+        ET.SubElement(joint, "child", link=name)
+        _origin(joint, Origin(offset))
+    if rigid_upper_body:
+        _weld_upper_body(robot, spec)
     return robot
 
 
-def urdf_xml(spec: RobotSpec) -> str:
-    """The URDF of ``spec`` as an indented XML document."""
-    robot = build_urdf(spec)
+def urdf_xml(spec: RobotSpec, rigid_upper_body: bool = False) -> str:
+    """The URDF of ``spec`` as an indented XML document (``rigid_upper_body``: see :func:`build_urdf`)."""
+    robot = build_urdf(spec, rigid_upper_body)
     ET.indent(robot)
     return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"

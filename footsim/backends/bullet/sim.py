@@ -1,6 +1,7 @@
 """PyBullet backend: the physics verbs of the shared 3D driver on a DIRECT-mode Bullet client.
 
-Model.  The URDF comes from the robot spec (``footsim.robots.urdf.urdf_xml``), written once per
+Model.  The URDF comes from the robot spec (``footsim.robots.urdf.urdf_xml``, the upper body welded
+with ``rigid_upper_body``), written once per
 backend to a temporary file (removed on ``close``) and loaded with ``URDF_USE_INERTIA_FROM_FILE``
 (Bullet would otherwise recompute inertias from the collision shapes) and
 ``URDF_USE_SELF_COLLISION``.  Self-collision is then restricted with collision groups to what the
@@ -46,24 +47,22 @@ the same reason.)
 from __future__ import annotations
 
 import contextlib
-import functools
 import math
 import os
 import sys
 import tempfile
 import weakref
-import xml.etree.ElementTree as ET
 
 import numpy as np
 import pybullet as p
 from scipy.spatial.transform import Rotation
 
 from footsim.backends.base import RenderOverlay
-from footsim.backends.physics3d import Physics3DBackend, PhysicsSim, levelling_rotation
-from footsim.compiled import typed_entry
-from footsim.kernels3d import bullet_base_ok, bullet_control_state, bullet_control_tick
+from footsim.backends.bullet import world_pool
+from footsim.backends.control import ServoFeedForward
+from footsim.backends.physics3d import PHYSICS_TERMS, Physics3DBackend, PhysicsSim, SimState, levelling_rotation
 from footsim.robots.spec import RobotSpec
-from footsim.robots.urdf import build_urdf
+from footsim.robots.urdf import urdf_xml
 from footsim.scene import Scene
 from footsim.walk.ik import LEG_JOINT_NAMES
 
@@ -90,95 +89,15 @@ def _quiet():
         os.close(devnull)
 
 
-def _rpy(rotation: np.ndarray) -> tuple[float, float, float]:
-    """URDF roll-pitch-yaw of a rotation matrix (R = Rz(y) Ry(p) Rx(r))."""
-    pitch = math.asin(max(-1.0, min(1.0, -float(rotation[2, 0]))))
-    return (math.atan2(rotation[2, 1], rotation[2, 2]), pitch, math.atan2(rotation[1, 0], rotation[0, 0]))
-
-
 def _quat_xyzw(rotation: np.ndarray) -> tuple[float, float, float, float]:
     """Bullet's (x, y, z, w) quaternion of a rotation matrix (scipy's convention is the same)."""
     return tuple(float(v) for v in Rotation.from_matrix(rotation).as_quat())
 
 
-def model_urdf(spec: RobotSpec, rigid_upper_body: bool) -> str:
-    """The spec's URDF; with ``rigid_upper_body`` the arm and head joints become fixed joints at
-    the walk-ready angles (folded into the joint origin), so Bullet merges them into the torso."""
-    robot = build_urdf(spec)
-    if rigid_upper_body:
-        upper_body = set(spec.upper_body_joint_names)
-        for element in robot.findall("joint"):
-            name = element.get("name")
-            if element.get("type") != "revolute" or name not in upper_body:
-                continue
-            rotation = spec.walk_ready_rotation(name)
-            element.set("type", "fixed")
-            for tag in ("axis", "limit", "dynamics"):
-                child = element.find(tag)
-                if child is not None:
-                    element.remove(child)
-            element.find("origin").set("rpy", " ".join(f"{v:.9g}" for v in _rpy(rotation)))
-    ET.indent(robot)
-    return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
-
-
-#: Idle built worlds (a DIRECT client with floor and robot loaded), keyed by the model.  Bullet
-#: keeps ~50-70 kB per ``loadURDF`` even after ``resetSimulation`` or ``disconnect``, so 1000
-#: create/close cycles would grow the process by ~70 MB; ``close`` parks its world here instead
-#: and the next backend of the same model reuses it, so memory is bounded by the number of
-#: backends open at once.  Beyond ``_MAX_IDLE`` idle worlds, ``close`` disconnects.
-_IDLE_WORLDS: dict[tuple, list[dict]] = {}
-_MAX_IDLE = 4
-
-
-def _release(client: int, path: str | None, key: tuple | None, world: dict | None) -> None:
-    try:
-        if p.isConnected(client):
-            idle = _IDLE_WORLDS.setdefault(key, []) if key is not None and world is not None else None
-            if idle is not None and sum(map(len, _IDLE_WORLDS.values())) < _MAX_IDLE:
-                idle.append(world)
-            else:
-                p.disconnect(client)
-    except Exception:  # pragma: no cover - interpreter shutdown
-        pass
-    if path:
-        try:
-            os.unlink(path)
-        except OSError:
-            pass
-
-
-#: Physics randomization terms the PyBullet sim applies (see ``apply_physics_randomization``).
-PYBULLET_TERMS = frozenset(
-    {
-        "floor_friction",
-        "foot_friction",
-        "link_mass_scale",
-        "torso_com_offset_x",
-        "torso_com_offset_y",
-        "actuator_kp_scale",
-        "torque_limit_scale",
-        "joint_damping_scale",
-        "terrain_slope",
-    }
-)
-
-
-@functools.cache
-def _compiled_per_tick():
-    """``bullet_control_tick`` and ``bullet_base_ok`` for the argument types they get here (Bullet's
-    tuples of floats, float64 C arrays, floats), without numba's per-call type resolution."""
-    v3, quat, tick_state = (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0), np.zeros((5, 14))
-    return (
-        typed_entry(bullet_control_tick, tick_state, 0, quat),
-        typed_entry(bullet_base_ok, v3, quat, v3, v3, np.zeros(3), np.eye(3), 1.0, 1.0, np.zeros(2)),
-    )
-
-
 class PybulletSim(PhysicsSim):
     """One DIRECT-mode Bullet world holding the robot, the floor and the scene's obstacles."""
 
-    capabilities = PYBULLET_TERMS
+    capabilities = PHYSICS_TERMS  # all of them (see apply_physics_randomization)
 
     def __init__(
         self,
@@ -263,7 +182,7 @@ class PybulletSim(PhysicsSim):
     # -- world ----------------------------------------------------------------------------
     def build(self, robot: RobotSpec, physics_dt: float) -> None:
         self.spec, self.physics_dt = robot, float(physics_dt)
-        text = model_urdf(robot, self.rigid_upper_body)
+        text = urdf_xml(robot, self.rigid_upper_body)
         self._key = (text, self.self_collision, self.armature_scale)
         # Motor gains per joint (see the module docstring for the mapping).
         self._gain = {
@@ -274,18 +193,14 @@ class PybulletSim(PhysicsSim):
         fd, self._urdf_path = tempfile.mkstemp(prefix=f"footsim_{robot.name}_", suffix=".urdf")
         with os.fdopen(fd, "w") as f:
             f.write(text)
-        idle = _IDLE_WORLDS.get(self._key)
-        world = None
-        while idle and world is None:
-            candidate = idle.pop()
-            world = candidate if p.isConnected(candidate["client"]) else None
+        world = world_pool.take(self._key)
         if world is not None:  # reuse a parked world of the same model
             self.__dict__.update(world)
         else:
             self.client = p.connect(p.DIRECT)
             if self.client < 0:  # pragma: no cover
                 raise RuntimeError("pybullet: could not connect a DIRECT client")
-        self._finalizer = weakref.finalize(self, _release, self.client, self._urdf_path, None, None)
+        self._finalizer = weakref.finalize(self, world_pool.release, self.client, self._urdf_path, None, None)
         if world is None:
             self._build_world()
         self._configure()
@@ -344,7 +259,6 @@ class PybulletSim(PhysicsSim):
         self._com_pos = np.array(dyn[3])
         self._com_orn = tuple(dyn[4])
         self._com_rot = np.array(p.getMatrixFromQuaternion(self._com_orn)).reshape(3, 3)
-        self._com_rows = (tuple(self._com_rot[0].tolist()), tuple(self._com_rot[1].tolist()))
         self.obstacle_ids: list[int] = []
         self._free: dict[str, list[int]] = {}  # parked obstacle bodies per kind ("cylinder", "ball")
         self._pool_kind: dict[int, str] = {}
@@ -352,7 +266,7 @@ class PybulletSim(PhysicsSim):
         self._stand_ins: list[int] = []  # render-only visual bodies of this episode's obstacles
         self._goal_marker = -1
         # Nominal masses and inertia diagonals of every robot link (-1: the torso), for randomization.
-        self._nominal_dynamics = {
+        self.nominal_dynamics = {
             link: (info[0], tuple(info[2]))
             for link in [-1, *range(p.getNumJoints(self.robot_id, physicsClientId=c))]
             for info in [p.getDynamicsInfo(self.robot_id, link, physicsClientId=c)]
@@ -406,6 +320,29 @@ class PybulletSim(PhysicsSim):
         self._scales = {"kp": 1.0, "damping": 1.0, "torque": 1.0}
         self.leg_vgains = [self.velocity_gain] * len(LEG_JOINT_NAMES)
         self.other_names = [n for n in self.joint_names if n not in LEG_JOINT_NAMES]
+        # The state contract: Bullet's base state (position, quaternion x y z w, linear and angular
+        # velocity of the inertial frame) read into one array; the leg commands sent from another.
+        self._base = np.zeros(13)
+        self._command = np.zeros(len(LEG_JOINT_NAMES))
+        self._feed_forward = None
+        if self.motor == "servo":
+            dt = self.control_dt if self.control_dt is not None else self.physics_dt
+            self._feed_forward = ServoFeedForward(self.servo_kv, np.ones(len(LEG_JOINT_NAMES)), dt)
+        self.state = SimState(
+            quat=self._base[3:7],
+            position=self._base[0:3],
+            command=self._command,
+            leg_ids=np.arange(len(LEG_JOINT_NAMES), dtype=np.intp),
+            finite=(self._base,),
+            live=False,
+            w_last=True,
+            frame=self._com_rot,
+            offset=self._com_pos,
+            matrix_normalizes=True,
+            velocity=self._base[7:13],
+            max_speed=self.max_base_speed,
+            feed_forward=None if self._feed_forward is None else self._feed_forward.state,
+        )
         if self.motor == "servo":
             # Torque mode: Bullet's leg motors become the joints' dry friction (a velocity motor to
             # 0 with the servo's frictionloss as its force, as MuJoCo's frictionloss); the servo law
@@ -420,8 +357,6 @@ class PybulletSim(PhysicsSim):
                 physicsClientId=c,
             )
             self._servo_gains()
-            self._ctrl = [0.0] * len(LEG_JOINT_NAMES)
-            self._previous = [0.0] * len(LEG_JOINT_NAMES)
 
     def _servo_gains(self) -> None:
         """Per leg joint (kp, kv, damping, effort) of the servo law, with the randomization scales."""
@@ -436,7 +371,7 @@ class PybulletSim(PhysicsSim):
             for j in map(self.spec.joint, LEG_JOINT_NAMES)
         ]
         dt = self.control_dt if self.control_dt is not None else self.physics_dt
-        self._feed = [kv / kp / dt for kp, kv, _, _ in self._servo]  # ctrl = q_t + kv/kp · q̇_t
+        self._feed_forward.gain[:] = [kv / kp / dt for kp, kv, _, _ in self._servo]  # the servo's kv / kp
 
     def set_obstacles(self, scene: Scene) -> None:
         """Place the scene's cylinders and ball.
@@ -530,8 +465,8 @@ class PybulletSim(PhysicsSim):
                 body, self.joint_index[name], float(joint_positions.get(name, 0.0)), 0.0, physicsClientId=c
             )
         if self.motor == "servo":  # target velocities restart from rest at these angles
-            self._previous = [float(joint_positions.get(n, 0.0)) for n in LEG_JOINT_NAMES]
-            self._ctrl = list(self._previous)
+            self._feed_forward.reset([float(joint_positions.get(n, 0.0)) for n in LEG_JOINT_NAMES])
+            self._command[:] = self._feed_forward.previous
         others = [self.joint_index[n] for n in self.other_names]
         if others:
             p.setJointMotorControlArray(
@@ -559,70 +494,33 @@ class PybulletSim(PhysicsSim):
         lowest = min(float((rotation @ t[:3, 3])[2]) for t in soles)
         return np.array([base_position[0], base_position[1], -lowest]), rotation
 
-    def set_leg_targets(self, targets: np.ndarray) -> None:
+    def read_state(self, velocity: bool = False) -> None:
+        base, c, body = self._base, self.client, self.robot_id
+        base[0:3], base[3:7] = p.getBasePositionAndOrientation(body, c)  # positional: keywords cost µs
+        if velocity:
+            base[7:10], base[10:13] = p.getBaseVelocity(body, c)
+
+    def write_command(self) -> None:
+        """Position motors: the command as their targets.  Servo mode: nothing to send (the servo
+        law turns the command into torques every physics step, ``_servo_torques``)."""
         if self.motor == "servo":
-            # MuJoCo's position actuator with kv (mujoco_backend.ServoFeedForward): the target
-            # velocity (backward difference of targets) is fed forward through ctrl.
-            new = targets.tolist()
-            self._ctrl = [t + f * (t - old) for t, old, f in zip(new, self._previous, self._feed)]
-            self._previous = new
             return
         p.setJointMotorControlArray(
             self.robot_id,
             self.leg_indices,
             p.POSITION_CONTROL,
-            targetPositions=targets.tolist(),
+            targetPositions=self._command.tolist(),
             forces=self.leg_forces,
             positionGains=self.leg_gains,
             velocityGains=self.leg_vgains,
             physicsClientId=self.client,
         )
 
-    def stabilized_ticks(self, targets: np.ndarray, trunk: np.ndarray, gains: np.ndarray, substeps: int):
-        """Stabilized control ticks in one Python loop: per tick a quaternion read, one compiled
-        call (``kernels3d.bullet_control_tick``: ``base_tilt`` + the correction, the same float
-        operations), the motor command and the physics steps.  About half the Python calls of
-        control + ``advance``, each of which costs µs because ``stepSimulation`` leaves the
-        caches cold.  Position motors only (servo mode: the verbs)."""
-        if self.motor != "position":
-            return None
-        read, command, mode, step = (
-            p.getBasePositionAndOrientation,
-            p.setJointMotorControlArray,
-            p.POSITION_CONTROL,
-            p.stepSimulation,
-        )
-        body, c, legs = self.robot_id, self.client, self.leg_indices
-        forces, position_gains, velocity_gains = self.leg_forces, self.leg_gains, self.leg_vgains
-        state = bullet_control_state(targets, trunk, gains, np.array(self._com_rows))
-        control_tick = _compiled_per_tick()[0]
-        physics_steps = range(substeps)
-        wrench = self._apply_wrench if self._wrench else None  # a COM offset (pushes take the verbs)
-
-        def run(k0: int, k1: int) -> None:
-            for k in range(k0, k1):
-                command(
-                    body,
-                    legs,
-                    mode,
-                    targetPositions=control_tick(state, k, read(body, c)[1]),
-                    forces=forces,
-                    positionGains=position_gains,
-                    velocityGains=velocity_gains,
-                    physicsClientId=c,
-                )
-                for _ in physics_steps:
-                    if wrench is not None:
-                        wrench()
-                    step(c)
-
-        return run
-
     def _servo_torques(self) -> list[float]:
         """MuJoCo's actuator law: clip(kp (ctrl − q) − kv q̇, ±effort) − damping q̇ per leg joint."""
         states = p.getJointStates(self.robot_id, self.leg_indices, physicsClientId=self.client)
         torques = []
-        for (q, qd, _, _), ctrl, (kp, kv, damping, effort) in zip(states, self._ctrl, self._servo):
+        for (q, qd, _, _), ctrl, (kp, kv, damping, effort) in zip(states, self._command.tolist(), self._servo):
             force = kp * (ctrl - q) - kv * qd
             torques.append(min(effort, max(-effort, force)) - damping * qd)
         return torques
@@ -676,7 +574,7 @@ class PybulletSim(PhysicsSim):
         * ``terrain_slope``: the floor plane is tilted about the origin toward
           ``terrain_slope_direction``.
         """
-        unknown = sorted(set(values) - PYBULLET_TERMS - {"terrain_slope_direction"})
+        unknown = sorted(set(values) - self.capabilities - {"terrain_slope_direction"})
         if unknown:
             raise ValueError(f"PybulletSim cannot apply randomization terms {unknown}")
         c, body = self.client, self.robot_id
@@ -688,7 +586,7 @@ class PybulletSim(PhysicsSim):
             return value
 
         mass = scale("link_mass_scale")
-        for link, (m, inertia) in self._nominal_dynamics.items():
+        for link, (m, inertia) in self.nominal_dynamics.items():
             p.changeDynamics(
                 body, link, mass=m * mass, localInertiaDiagonal=[v * mass for v in inertia], physicsClientId=c
             )
@@ -746,15 +644,6 @@ class PybulletSim(PhysicsSim):
         rot = np.array(p.getMatrixFromQuaternion(orn)).reshape(3, 3) @ self._com_rot.T  # link frame
         return np.asarray(pos) - rot @ self._com_pos, rot
 
-    def base_tilt(self) -> tuple[float, float]:
-        """Fused (roll, pitch) of the link frame from the base quaternion, without building the
-        matrices (every control tick with the stabilizer on: ~3 µs instead of ~14 µs)."""
-        x, y, z, w = p.getBasePositionAndOrientation(self.robot_id, physicsClientId=self.client)[1]
-        r0, r1, r2 = 2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)  # row 2 of R_com
-        (a0, a1, a2), (b0, b1, b2) = self._com_rows  # link frame: R = R_com @ com_rot^T
-        s_pitch, s_roll = -(r0 * a0 + r1 * a1 + r2 * a2), r0 * b0 + r1 * b1 + r2 * b2
-        return math.asin(max(-1.0, min(1.0, s_roll))), math.asin(max(-1.0, min(1.0, s_pitch)))
-
     def joint_positions(self) -> dict[str, float]:
         states = p.getJointStates(
             self.robot_id, [self.joint_index[n] for n in self.joint_names], physicsClientId=self.client
@@ -779,24 +668,6 @@ class PybulletSim(PhysicsSim):
         if math.hypot(*lin) > self.max_base_speed or math.hypot(*ang) > 6 * self.max_base_speed:
             return "exploding base velocity"
         return None
-
-    def status_ok(self, out_of_bounds: float, tilt: np.ndarray) -> bool:
-        """The driver's periodic check in two Bullet reads and one compiled call (the full check,
-        ``sim_error`` + ``base_pose``, is ~40-75 µs of small numpy; 12 times a double step)."""
-        c, body = self.client, self.robot_id
-        position, orientation = p.getBasePositionAndOrientation(body, c)
-        linear, angular = p.getBaseVelocity(body, c)
-        return _compiled_per_tick()[1](
-            position,
-            orientation,
-            linear,
-            angular,
-            self._com_pos,
-            self._com_rot,
-            float(out_of_bounds),
-            self.max_base_speed,
-            tilt,
-        )
 
     def _healthy(self) -> bool:
         """No sim error and the base within 50 m of the origin (else the world is rebuilt)."""
@@ -854,17 +725,16 @@ class PybulletSim(PhysicsSim):
         "_com_pos",
         "_com_orn",
         "_com_rot",
-        "_com_rows",
         "obstacle_ids",
         "_free",
         "_pool_kind",
         "_goal_marker",
         "_goal_arrow",
-        "_nominal_dynamics",
+        "nominal_dynamics",
     )
 
     def close(self) -> None:
-        """Park the world for reuse (see ``_IDLE_WORLDS``) or disconnect; remove the URDF file."""
+        """Park the world for reuse (``world_pool``) or disconnect; remove the URDF file."""
         if self._finalizer is None or not self._finalizer.alive:
             return
         self._finalizer.detach()
@@ -879,7 +749,7 @@ class PybulletSim(PhysicsSim):
                 world = {k: getattr(self, k) for k in self._WORLD_ATTRS if hasattr(self, k)}
         except Exception:  # pragma: no cover - a broken world is not reused
             world = None
-        _release(self.client, self._urdf_path, self._key if world is not None else None, world)
+        world_pool.release(self.client, self._urdf_path, self._key if world is not None else None, world)
         self.client = -1
 
 

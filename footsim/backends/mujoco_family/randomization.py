@@ -35,20 +35,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: The physics terms both MuJoCo-based sims apply.
-MUJOCO_TERMS = frozenset(
-    {
-        "floor_friction",
-        "foot_friction",
-        "link_mass_scale",
-        "torso_com_offset_x",
-        "torso_com_offset_y",
-        "actuator_kp_scale",
-        "torque_limit_scale",
-        "joint_damping_scale",
-        "terrain_slope",
-    }
-)
+from footsim.backends.physics3d import PHYSICS_TERMS
+from footsim.robots.mjcf import FLOOR_GEOM, import_mujoco
+
 _FRICTION_TERMS = ("floor_friction", "foot_friction")
 _MASS_TERMS = ("link_mass_scale", "torso_com_offset_x", "torso_com_offset_y")
 
@@ -196,18 +185,18 @@ class MujocoRandomization:
     time it is used on a compiled model.  The sim provides ``self.robot`` and either
     ``self.model`` / ``self.data`` (mujoco) or ``self.physics`` (dm_control)."""
 
-    capabilities = MUJOCO_TERMS
+    capabilities = PHYSICS_TERMS  # all of them
 
-    def _mj(self):
+    def mj_model_data(self):
+        """The raw ``mujoco.MjModel`` and ``MjData`` of this sim (dm-control: its physics' pointers)."""
         physics = getattr(self, "physics", None)
         if physics is not None:
             return physics.model.ptr, physics.data.ptr
         return self.model, self.data
 
-    def _mj_nominal(self) -> MujocoNominal:
-        from footsim.robots.mjcf import FLOOR_GEOM, import_mujoco
-
-        model, _ = self._mj()
+    def mj_nominal(self) -> MujocoNominal:
+        """What the randomization terms edit and its nominal values (captured once per compiled model)."""
+        model, _ = self.mj_model_data()
         state = getattr(self, "_mj_rand_state", None)
         if state is not None and state[0] is model:
             return state[1]
@@ -239,13 +228,11 @@ class MujocoRandomization:
         return nominal
 
     def apply_physics_randomization(self, values: dict[str, float]) -> None:
-        from footsim.robots.mjcf import import_mujoco
-
-        unknown = sorted(set(values) - MUJOCO_TERMS - {"terrain_slope_direction"})
+        unknown = sorted(set(values) - self.capabilities - {"terrain_slope_direction"})
         if unknown:
             raise ValueError(f"{type(self).__name__} cannot apply randomization terms {unknown}")
-        nominal = self._mj_nominal()
-        model, _ = self._mj()
+        nominal = self.mj_nominal()
+        model, _ = self.mj_model_data()
         apply(model, nominal, values, import_mujoco())
         nominal_ff = self._mj_rand_state[2]
         if nominal_ff is not None:  # keep the D term kv (qdot_t - qdot) with the new kp
@@ -256,6 +243,6 @@ class MujocoRandomization:
                 self._ff_gain = gain
 
     def apply_base_force(self, force_xyz) -> None:
-        nominal = self._mj_nominal()
-        _, data = self._mj()
+        nominal = self.mj_nominal()
+        _, data = self.mj_model_data()
         data.xfrc_applied[nominal.torso, :3] = np.asarray(force_xyz, dtype=float)

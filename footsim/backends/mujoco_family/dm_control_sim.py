@@ -6,7 +6,7 @@ dm_control's own idiom, driven by the shared 3D driver.
   tree with the ``mjcf`` API before compiling: integrator and offscreen buffer size, the model
   options it shares with the MuJoCo backend (torsional friction on the feet, servo kp and
   damping scales, servo_kv — validated by the same helpers), a tracking camera on the torso, and the
-  obstacle pool (:data:`~footsim.backends.mujoco_backend.N_CYLINDERS` cylinders and a sphere for
+  obstacle pool (:data:`~footsim.backends.mujoco_family.engine.N_CYLINDERS` cylinders and a sphere for
   the ball, added to the world body).
 * **Physics** — ``mjcf.Physics.from_mjcf_model``.  Everything is addressed through
   ``physics.bind(element)`` of the mjcf elements found by name (the bindings are made once at
@@ -34,9 +34,6 @@ import os
 import sys
 
 import numpy as np
-
-if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
-    os.environ["MUJOCO_GL"] = "egl"  # headless rendering; must be set before dm_control is imported
 
 _HEADLESS_GL = ("egl", "osmesa")
 
@@ -83,37 +80,35 @@ def _defer_headless_gl_backend() -> None:
 
 _defer_headless_gl_backend()
 
-from dm_control import mjcf  # a missing package: backend_class names the extra to install
-from dm_control.rl.control import PhysicsError
+# The imports below come after the deferral: dm_control's GL backend is chosen when it is imported.
+from dm_control import mjcf  # noqa: E402 - a missing package: backend_class names the extra to install
+from dm_control.rl.control import PhysicsError  # noqa: E402
 
-from footsim.backends.base import RenderOverlay
-from footsim.backends.mujoco_backend import (
-    _BALL_RGBA,
-    _OBSTACLE_BIT,
-    _OBSTACLE_RGBA,
-    _PARK,
+from footsim.backends.base import RenderOverlay  # noqa: E402
+from footsim.backends.control import ServoFeedForward  # noqa: E402
+from footsim.backends.mujoco_family.engine import (  # noqa: E402
+    BALL_RGBA,
     CAMERA_AZIMUTH,
     CAMERA_DISTANCE,
     CAMERA_ELEVATION,
     N_CYLINDERS,
+    OBSTACLE_BIT,
     OBSTACLE_HEIGHT,
-    MujocoModelOptions,
-    ServoFeedForward,
+    OBSTACLE_RGBA,
+    PARK,
+    MujocoEngineSim,
     draw_overlay,
     fatal_warning_ids,
-    fatal_warning_message,
     foot_contact,
     levelling_quat,
     obstacle_geometry,
-    quat_fused_roll_pitch,
     require_rendering,
 )
-from footsim.backends.mujoco_randomization import MujocoRandomization
-from footsim.backends.physics3d import Physics3DBackend, PhysicsSim, quat_to_matrix
-from footsim.robots.mjcf import FREE_JOINT, build_mjcf, sole_site
-from footsim.robots.spec import RobotSpec
-from footsim.scene import Scene
-from footsim.walk.ik import LEG_JOINT_NAMES
+from footsim.backends.physics3d import Physics3DBackend, SimState, quat_to_matrix  # noqa: E402
+from footsim.robots.mjcf import FREE_JOINT, build_mjcf, sole_site  # noqa: E402
+from footsim.robots.spec import RobotSpec  # noqa: E402
+from footsim.scene import Scene  # noqa: E402
+from footsim.walk.ik import LEG_JOINT_NAMES  # noqa: E402
 
 CAMERA = "track"  # name of the render camera (on the torso)
 
@@ -129,10 +124,11 @@ def _camera_frame() -> tuple[np.ndarray, np.ndarray]:
     return -CAMERA_DISTANCE * forward, np.concatenate([right, up])
 
 
-class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # randomization verbs: mujoco_randomization
+class DmControlSim(MujocoEngineSim):
     """``PhysicsSim`` on dm_control: an ``mjcf`` model, ``mjcf.Physics``, bindings by name."""
 
     mjcf_model = physics = None  # set by build()
+    engine_label = "dm_control"
     _error: str | None = None
 
     # -- world ------------------------------------------------------------------------------
@@ -158,10 +154,10 @@ class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # rand
                 name=name,
                 type="sphere" if name == "ball" else "cylinder",
                 size=[0.1] if name == "ball" else [0.1, OBSTACLE_HEIGHT / 2],
-                pos=_PARK,
-                rgba=_BALL_RGBA if name == "ball" else _OBSTACLE_RGBA,
-                contype=_OBSTACLE_BIT,
-                conaffinity=_OBSTACLE_BIT,
+                pos=PARK,
+                rgba=BALL_RGBA if name == "ball" else OBSTACLE_RGBA,
+                contype=OBSTACLE_BIT,
+                conaffinity=OBSTACLE_BIT,
             )
             for name in [f"obstacle{i}" for i in range(N_CYLINDERS)] + ["ball"]
         ]
@@ -201,6 +197,16 @@ class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # rand
         self._obstacle_mask = np.zeros(physics.model.ngeom, dtype=bool)
         self._obstacle_mask[self._pool_ids] = True
         self._warning_ids = fatal_warning_ids()
+        self.state = SimState(
+            quat=self._root_q[3:7],
+            position=self._root_q[:3],
+            command=self._ctrl,
+            leg_ids=self._leg_ids,
+            finite=(self._qpos, self._qvel),
+            warnings=self._warnings,
+            warning_ids=self._warning_ids,
+            feed_forward=None if self._feed_forward is None else self._feed_forward.state,
+        )
         self._park_all()
         physics.forward()
 
@@ -233,7 +239,7 @@ class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # rand
 
     def _park_all(self) -> None:
         pool = self._pool_bound
-        pool.pos = np.tile(_PARK, (len(self._pool), 1))
+        pool.pos = np.tile(PARK, (len(self._pool), 1))
         pool.contype = pool.conaffinity = 0
         pool.rgba[:, 3] = 0.0  # invisible
 
@@ -251,13 +257,14 @@ class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # rand
             bound.size, bound.pos, bound.rbound, bound.aabb = obstacle_geometry(
                 obstacle.x, obstacle.y, obstacle.r + self.obstacle_inflation, ball
             )
-            bound.contype = bound.conaffinity = _OBSTACLE_BIT
+            bound.contype = bound.conaffinity = OBSTACLE_BIT
             bound.rgba[3] = 1.0
 
     # -- robot ------------------------------------------------------------------------------
     def reset_robot(self, base_position: np.ndarray, joint_positions: dict[str, float]) -> None:
         physics = self.physics
         self._error = None
+        self.state.fault[0] = 0
         names = [n for n in joint_positions if n not in self._rigid_joints]  # welded ones stay put
         angles = np.array([joint_positions[n] for n in names], dtype=float)
         root = np.concatenate([np.asarray(base_position, dtype=float), [1.0, 0.0, 0.0, 0.0]])
@@ -277,19 +284,6 @@ class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # rand
         self._root.qpos = root
         physics.forward()
 
-    def set_leg_targets(self, targets: np.ndarray) -> None:
-        ff = self._feed_forward  # = self._legs.ctrl = targets, below without the Binding overhead
-        self._ctrl[self._leg_ids] = targets if ff is None else ff.ctrl(targets)
-
-    def control_arrays(self):
-        ff = self._feed_forward
-        return self._root_q[3:7], self._ctrl, self._leg_ids, None if ff is None else ff.state
-
-    def status_arrays(self):
-        if self._error is not None:  # a PhysicsError: the full check reports it
-            return None
-        return self._root_q, self._qpos, self._qvel, self._warnings, self._warning_ids
-
     def advance(self, n_steps: int) -> None:
         if self._error is not None:
             return  # the state is no longer valid; the driver ends the episode at its next check
@@ -297,29 +291,14 @@ class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # rand
             self.physics.step(n_steps)
         except PhysicsError as err:
             self._error = f"dm_control PhysicsError: {err}"
+            self.state.fault[0] = 1
 
     def base_pose(self) -> tuple[np.ndarray, np.ndarray]:
         q = self._root_q.copy()  # free joint: position, unit quaternion (w, x, y, z)
         return q[:3], quat_to_matrix(q[3:7])
 
-    def base_tilt(self) -> tuple[float, float]:
-        return quat_fused_roll_pitch(self._root_q[3:7])
-
-    def obstacle_contact(self) -> bool:
-        data = self.physics.data
-        if data.ncon == 0:
-            return False
-        return bool(self._obstacle_mask[data.contact.geom].any())
-
     def sim_error(self) -> str | None:
-        if self._error is not None:
-            return self._error
-        message = fatal_warning_message(self._warnings[self._warning_ids])
-        if message is not None:
-            return message
-        if not (math.isfinite(self._qpos.sum()) and math.isfinite(self._qvel.sum())):
-            return "non-finite dm_control state (qpos/qvel)"
-        return None
+        return self._error if self._error is not None else super().sim_error()
 
     # -- rendering --------------------------------------------------------------------------
     def render(self, overlay: RenderOverlay | None, width: int, height: int) -> np.ndarray | None:
@@ -334,6 +313,7 @@ class DmControlSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):  # rand
         self.physics = self.mjcf_model = None
         self._root = self._legs = self._soles = self._pool_bound = None
         self._ctrl = self._qpos = self._qvel = self._root_q = self._warnings = None
+        self.state = None  # views of the freed mjData
         self._pool, self.joints, self.actuators = [], {}, {}
 
 
