@@ -43,7 +43,16 @@ def conf_dir() -> Path:
 
 
 def available(group: str) -> list[str]:
-    return sorted(p.stem for p in (conf_dir() / group).glob("*.yaml"))
+    """A group's presets: the YAML files in ``conf/<group>/`` and the nodes user code stored in
+    Hydra's ConfigStore under that group (``ConfigStore.instance().store(group=..., name=...)``)."""
+    from hydra.core.config_store import ConfigStore
+
+    files = {p.stem for p in (conf_dir() / group).glob("*.yaml")}
+    try:
+        stored = {name.removesuffix(".yaml") for name in ConfigStore.instance().list(group)}
+    except OSError:  # ConfigStore raises IOError for a group nobody stored into
+        stored = set()
+    return sorted(files | stored)
 
 
 @contextmanager

@@ -88,6 +88,16 @@ BACKENDS: dict[str, BackendEntry] = {
 _SIMULATOR_MODULES = {"mujoco": "mujoco", "dm_control": "dm_control", "pybullet": "pybullet"}
 
 
+def register_backend(name: str, target: str, extra: str | None = None) -> None:
+    """Make ``backend=name`` build ``target`` ("module:Class", imported when first used).  ``extra``
+    is the pip extra that installs its simulator, named in the error when that is missing.  The
+    backend's config preset is registered separately (a ``conf/backend/<name>.yaml`` file or a
+    ConfigStore node in the ``backend`` group; docs/ARCHITECTURE.md, "Add a backend")."""
+    if ":" not in target:
+        raise ValueError(f"register_backend({name!r}): target must be 'module:Class', got {target!r}")
+    BACKENDS[name] = BackendEntry(target, extra)
+
+
 def require_known_backends(names, command: str) -> None:
     """A command-line check before any work: exit with a message naming unknown backends."""
     unknown = [n for n in names if n not in BACKENDS]

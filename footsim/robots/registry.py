@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 
 from footsim.robots.spec import RobotSpec
 from footsim.robots.wolfgang import wolfgang
@@ -15,6 +15,13 @@ def get_robot(name: str) -> RobotSpec:
         return ROBOTS[name]()
     except (KeyError, TypeError):
         raise ValueError(f"unknown robot {name!r}; valid robots: {sorted(ROBOTS)}") from None
+
+
+def register_robot(name: str, build: Callable[[], RobotSpec]) -> None:
+    """Make ``robot=name`` (or ``robot={"name": name}``) build its spec with ``build()``."""
+    if not callable(build):
+        raise TypeError(f"register_robot({name!r}): build must be a function returning a RobotSpec")
+    ROBOTS[name] = build
 
 
 CONFIG_KEYS = ("name",)
