@@ -128,7 +128,7 @@ def main(argv: list[str]) -> None:
     storage = f"sqlite:///{args['out']}" if "out" in args else None
     sequences = standard_sequences()
     if "bench" in args:  # also footsim-bench's pattern (half-limit forward, gentle turns), 30 double steps
-        from footsim.backends.bench3d import PATTERN
+        from footsim.bench.physics3d import PATTERN
         from footsim.calibration.walkcheck import Sequence
 
         sequences.append(Sequence("bench pattern", np.tile(PATTERN, (15, 1)), "translation"))

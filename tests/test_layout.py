@@ -7,8 +7,8 @@
 (c) The package root holds only the modules below both tasks and backends, the env glue and the
     config layer (:data:`ROOT_MODULES`); everything else lives in its domain package.
 
-The files other engineers are still moving (issue 23) are listed in :data:`PENDING`, with who
-moves them; their findings fail with that note until the move lands.
+A finding that is being worked on can be listed in :data:`PENDING` (module -> who moves it and
+why); it still fails, with that note.
 """
 
 from __future__ import annotations
@@ -30,24 +30,11 @@ ROOT_MODULES = {
     "footsim.env": "FootstepEnv: the glue of task, noise, randomizer and backend",
     "footsim.config": "the config layer that composes the Hydra groups into objects",
     "footsim.randomization": "domain-randomization terms, shared by the env and the backends",
+    "footsim.schema": "the structured-config schemas of every Hydra group, registered beside the config layer",
 }
 
 #: Module -> the move that removes its finding (the lead makes these pass after the merge).
-PENDING = {
-    "footsim.kernels3d": "H1 (issue 23 item 1): the 3D kernels move beside the shared 3D driver",
-    "footsim.backends.dm_control_backend": "H1 (issue 23 item 1): dm-control imports MuJoCo's private names",
-    "footsim.backends.mujoco_backend": "H1 (issue 23 item 1): the 3D backends' shared names",
-    "footsim.backends.physics3d": "H1 (issue 23 item 1): the shared 3D driver",
-    "footsim.backends.pybullet_backend": "H1 (issue 23 item 1): PyBullet's world pool, kernels and URDF fix-ups",
-    "footsim.backends.mujoco_randomization": "H1 (issue 23 item 1): one 3D randomization vocabulary",
-    "footsim.backends.bench3d": "H1: the 3D benchmark moves into footsim.bench",
-    "footsim.tasks.nav": "H2 (issue 23 item 2): the task's terms and termination",
-    "footsim.env": "H2 (issue 23 item 2): env.py becomes thin glue",
-    "footsim.config": "H2 (issue 23 item 3): typed configs, one composer",
-    "footsim.rl.train": "H2 (issue 23 item 3)",
-    "footsim.rl.evaluate": "H2 (issue 23 item 3)",
-    "footsim.rl.common": "H2 (issue 23 item 3)",
-}
+PENDING: dict[str, str] = {}
 
 
 def _module_name(path: Path) -> str:
@@ -184,10 +171,6 @@ def test_only_the_allowed_modules_live_at_the_package_root():
     )
 
 
-#: Console scripts whose ``main`` stays beside the code it runs (Hydra apps of the rl package).
-SCRIPTS_OUTSIDE_TOOLS = {"footsim-train", "footsim-eval"}
-
-
 def test_every_command_line_lives_in_footsim_tools():
     tomllib = pytest.importorskip("tomllib", reason="tomllib is in the standard library from Python 3.11")
     scripts = tomllib.loads((PACKAGE.parent / "pyproject.toml").read_text())["project"]["scripts"]
@@ -196,5 +179,4 @@ def test_every_command_line_lives_in_footsim_tools():
         assert module in MODULES, f"{name}: {module} is not a footsim module"
         tree = ast.parse(MODULES[module].read_text())
         assert function in {n.name for n in tree.body if isinstance(n, ast.FunctionDef)}, f"{name}: no {target}"
-        if name not in SCRIPTS_OUTSIDE_TOOLS:
-            assert module.startswith("footsim.tools."), f"{name} -> {target}: command lines live in footsim.tools"
+        assert module.startswith("footsim.tools."), f"{name} -> {target}: command lines live in footsim.tools"

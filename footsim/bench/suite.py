@@ -13,8 +13,8 @@ import statistics
 from collections.abc import Callable
 from typing import Any
 
-from footsim.backends.bench3d import bench_backend
 from footsim.bench.env2d import bench_env2d
+from footsim.bench.physics3d import bench_backend
 from footsim.bench.planners import bench_planners
 from footsim.bench.walk import bench_walk
 

@@ -10,6 +10,8 @@ from pathlib import Path
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
+from footsim.config import upgrade_run_config
+from footsim.rl.beta import BetaActorCriticPolicy
 from footsim.utils import atomic_write_text
 
 MODEL_FILE = "model.zip"
@@ -40,7 +42,6 @@ def save_config(run_dir: Path, cfg: DictConfig) -> None:
 
 def load_run_config(run_dir: str | os.PathLike) -> DictConfig:
     """A run's resolved config, in today's keys (``footsim.config.upgrade_run_config``)."""
-    from footsim.config import upgrade_run_config
 
     path = Path(run_dir) / CONFIG_FILE
     if not path.is_file():
@@ -84,8 +85,6 @@ def validate_train_config(cfg: DictConfig) -> None:
 def policy_class(agent: DictConfig):
     """SB3 policy for the configured action distribution."""
     if agent.get("distribution", "gaussian") == "beta":
-        from footsim.rl.beta import BetaActorCriticPolicy
-
         return BetaActorCriticPolicy
     return "MlpPolicy"
 

@@ -18,9 +18,13 @@ from typing import Protocol
 
 import numpy as np
 
+from footsim import config as fconf
+from footsim.env import FootstepEnv, make_env
+from footsim.planners import make_controller
+from footsim.rl.common import LoadedPolicy, write_json
 from footsim.scene import Scene
 from footsim.tasks.scenes import load_scenes, sample_scenes
-from footsim.utils import atomic_write_text
+from footsim.utils import atomic_save, atomic_write_text
 
 OUTCOME_COLUMNS = ("success", "timeout", "fall", "collision", "sim_error")
 
@@ -82,8 +86,6 @@ def run_episode(env, controller: Controller, scene: Scene, seed: int, record_fra
 def save_video(path: Path, frames: list[np.ndarray], fps: float = 2.0) -> None:
     """An animated GIF (PIL only, no codec needed), written atomically."""
     from PIL import Image
-
-    from footsim.utils import atomic_save
 
     images = [Image.fromarray(f) for f in frames if f is not None]
     if not images:
@@ -171,7 +173,6 @@ def write_results(
     plot: bool = True,
     title: str = "",
 ) -> None:
-    from footsim.rl.common import write_json
 
     out_dir.mkdir(parents=True, exist_ok=True)
     buffer = io.StringIO()
@@ -191,8 +192,6 @@ def plot_goals(path: Path, records: list[dict], title: str = "") -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.colors import LogNorm
-
-    from footsim.utils import atomic_save
 
     fig, ax = plt.subplots(figsize=(7, 6))
     ok = [r for r in records if r["outcome"] == "success"]
@@ -249,8 +248,6 @@ def _conditions(backend: str, task: str, noise: str, randomization: str | None) 
 
 def evaluate_run(run_cfg, run_dir: Path, out_dir: Path, cfg_eval, label: str | None = None) -> dict:
     """Evaluate a run's trained policy with the (possibly overridden) run config."""
-    from footsim.env import make_env
-    from footsim.rl.common import LoadedPolicy
 
     video = bool(cfg_eval.get("video", False))
     env = make_env(run_cfg, render_mode="rgb_array" if video else None)
@@ -287,9 +284,6 @@ def evaluate_baseline(cfg_eval, out_dir: Path, label: str | None = None) -> dict
     pymunk, the scene file's task or nav, none, none); the walk is the backend's preset, as in
     training.
     """
-    from footsim import config as fconf
-    from footsim.env import FootstepEnv
-    from footsim.planners import make_controller
 
     scenes = load_scenes(cfg_eval.scenes) if cfg_eval.get("scenes") else None
     task = cfg_eval.get("task")
@@ -335,43 +329,8 @@ def evaluate_baseline(cfg_eval, out_dir: Path, label: str | None = None) -> dict
     name = label or f"{controller_cfg['name']} baseline ({conditions})"
     summary["label"] = name
     write_results(out_dir, records, summary, scenes, plot=bool(cfg_eval.get("plot", True)), title=name)
-    from footsim.rl.common import write_json
 
     write_json(out_dir / "config_used.json", cfg_used)
     print(format_table({name: summary}))
     print(f"results in {out_dir}")
     return summary
-
-
-def _main(cfg) -> dict:
-    from hydra.core.hydra_config import HydraConfig
-    from omegaconf import OmegaConf
-
-    from footsim import config as fconf
-    from footsim.rl.common import load_run_config
-
-    controller = cfg.get("controller")
-    if controller is not None and controller.get("name", "policy") != "policy":
-        return evaluate_baseline(cfg, Path(HydraConfig.get().runtime.output_dir))
-    if cfg.run is None:
-        raise SystemExit("footsim-eval: run=RUN_DIR is required (or controller=velocity|footstep for a baseline)")
-    run_dir = Path(cfg.run).expanduser().resolve()
-    run_cfg = load_run_config(run_dir)
-    OmegaConf.set_struct(run_cfg, False)
-    for group in ("backend", "noise", "randomization"):  # groups chosen on the command line replace the run's
-        if cfg.get(group) is not None:
-            run_cfg[group] = fconf.load_preset(group, cfg[group])
-    if cfg.get("backend") is not None:  # a policy moved to another backend walks with that backend's gait
-        run_cfg.walk = fconf.load_preset("walk", backend=run_cfg.backend.name)
-    out_dir = Path(HydraConfig.get().runtime.output_dir)
-    return evaluate_run(run_cfg, run_dir, out_dir, cfg)
-
-
-def main() -> None:
-    import hydra
-
-    from footsim.config import conf_dir
-    from footsim.schema import register_schemas
-
-    register_schemas(controllers=True)  # the controller group's schemas, before hydra.main composes
-    hydra.main(config_path=str(conf_dir()), config_name="eval", version_base="1.3")(_main)()

@@ -15,9 +15,10 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
+from footsim.backends.base import BACKENDS, backend_class
+from footsim.env import OUTCOMES, make_env
 from footsim.rl.common import (
     CHECKPOINT_DIR,
-    CONFIG_FILE,
     MODEL_FILE,
     VECNORM_FILE,
     load_run_config,
@@ -27,6 +28,8 @@ from footsim.rl.common import (
     validate_train_config,
     write_json,
 )
+from footsim.rl.evaluate import evaluate_run
+from footsim.rl.transfer import init_from_run
 from footsim.utils import atomic_save
 
 LATEST = "latest.zip"
@@ -38,8 +41,6 @@ def _env_factory(cfg: DictConfig, rank: int, worker_process: bool = False):
 
     def make():
         from stable_baselines3.common.monitor import Monitor
-
-        from footsim.env import make_env
 
         if worker_process:  # a terminal's Ctrl-C reaches the whole group: the trainer alone handles
             signal.signal(signal.SIGINT, signal.SIG_IGN)  # it and closes its workers afterwards
@@ -57,8 +58,6 @@ def build_vec_env(cfg: DictConfig):
         kind = "dummy" if cfg.backend.name == "pymunk" or n_envs == 1 else "subproc"
     if kind == "subproc":  # a missing simulator: its clear ImportError here, not a worker's broken pipe
         import multiprocessing
-
-        from footsim.backends.base import BACKENDS, backend_class
 
         backend_class(cfg.backend.name)
         # Workers fork from a forkserver that has already imported torch (SB3's worker loop),
@@ -142,8 +141,6 @@ def _make_outcome_callback(window: int = 100):
 
     from stable_baselines3.common.callbacks import BaseCallback
 
-    from footsim.env import OUTCOMES
-
     class OutcomeRates(BaseCallback):
         def __init__(self) -> None:
             super().__init__()
@@ -219,8 +216,6 @@ def train(cfg: DictConfig, run_dir: Path) -> dict:
             verbose=0,
         )
         if cfg.get("init_from"):
-            from footsim.rl.transfer import init_from_run
-
             lineage = init_from_run(model, cfg.init_from, cfg.task)
             write_json(run_dir / "parent.json", lineage)
             print(f"initialised from {lineage['init_from']} ({lineage['parent_backend']}, {lineage['parent_task']})")
@@ -269,30 +264,5 @@ def train(cfg: DictConfig, run_dir: Path) -> dict:
 
     if not cfg.eval.after_train:
         return {}
-    from footsim.rl.evaluate import evaluate_run
 
     return evaluate_run(cfg, run_dir, run_dir / "eval", cfg.eval)
-
-
-def _main(cfg: DictConfig):
-    from hydra.core.hydra_config import HydraConfig
-
-    hydra_cfg = HydraConfig.get()
-    if cfg.get("resume"):
-        ignored = [o for o in hydra_cfg.overrides.task if o.split("=", 1)[0].lstrip("+~") != "resume"]
-        if ignored:  # the run's saved config decides; say so rather than drop them silently
-            print(f"resume: continuing with the run's saved config ({CONFIG_FILE}); ignoring {' '.join(ignored)}")
-    summary = train(cfg, Path(hydra_cfg.runtime.output_dir))
-    return summary.get("success") if summary else None
-
-
-def main() -> None:
-    import hydra
-
-    from footsim.config import conf_dir
-
-    hydra.main(config_path=str(conf_dir()), config_name="config", version_base="1.3")(_main)()
-
-
-if __name__ == "__main__":
-    main()

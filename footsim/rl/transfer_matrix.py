@@ -54,7 +54,7 @@ COLUMNS = ("train_backend", "eval_backend", "randomization", *METRICS, "run", "e
 def train_command(
     backends: list[str], overrides: list[str], sweep_dir: Path, launcher: str | None, train_eval: bool
 ) -> list[str]:
-    cmd = [sys.executable, "-c", "from footsim.rl.train import main; main()", "-m"]
+    cmd = [sys.executable, "-c", "from footsim.tools.train import main; main()", "-m"]
     if launcher:
         cmd.append(f"+launcher={launcher}")
     cmd.append(f"backend={','.join(backends)}")

@@ -10,6 +10,6 @@ files only; what they compute lives in its domain module.
 - ``footsim-walkcheck``: :mod:`footsim.tools.walkcheck` runs :mod:`footsim.calibration.walkcheck`.
 - ``footsim-walkplot``: :mod:`footsim.tools.walkplot` runs :mod:`footsim.walk.plot`.
 - ``footsim-walktune``: :mod:`footsim.tools.walktune` runs :mod:`footsim.calibration.walktune`.
-- ``footsim-train`` and ``footsim-eval``: the ``main`` of :mod:`footsim.rl.train` and
-  :mod:`footsim.rl.evaluate` (Hydra apps beside the code they run).
+- ``footsim-train``: :mod:`footsim.tools.train`, the Hydra app that runs :func:`footsim.rl.train.train`.
+- ``footsim-eval``: :mod:`footsim.tools.evaluate`, the Hydra app that runs :mod:`footsim.rl.evaluate`.
 """

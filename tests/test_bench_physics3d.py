@@ -1,9 +1,9 @@
-"""``footsim.backends.bench3d``: the replay times exactly the env's physics ticks."""
+"""``footsim.bench.physics3d``: the replay times exactly the env's physics ticks."""
 
 import numpy as np
 import pytest
 
-from footsim.backends.bench3d import PATTERN, bench_backend
+from footsim.bench.physics3d import PATTERN, bench_backend
 from footsim.walk.footsteps import DoubleStep
 
 

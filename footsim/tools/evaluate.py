@@ -1,0 +1,39 @@
+"""``footsim-eval run=RUN_DIR | controller=velocity|footstep [overrides]``: evaluate a trained run or a
+baseline on a scene set (:mod:`footsim.rl.evaluate`); a Hydra app on ``conf/eval.yaml``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import hydra
+from hydra.core.hydra_config import HydraConfig
+from omegaconf import OmegaConf
+
+from footsim import config as fconf
+from footsim.config import conf_dir
+from footsim.rl.common import load_run_config
+from footsim.rl.evaluate import evaluate_baseline, evaluate_run
+from footsim.schema import register_schemas
+
+
+def _main(cfg) -> dict:
+    controller = cfg.get("controller")
+    if controller is not None and controller.get("name", "policy") != "policy":
+        return evaluate_baseline(cfg, Path(HydraConfig.get().runtime.output_dir))
+    if cfg.run is None:
+        raise SystemExit("footsim-eval: run=RUN_DIR is required (or controller=velocity|footstep for a baseline)")
+    run_dir = Path(cfg.run).expanduser().resolve()
+    run_cfg = load_run_config(run_dir)
+    OmegaConf.set_struct(run_cfg, False)
+    for group in ("backend", "noise", "randomization"):  # groups chosen on the command line replace the run's
+        if cfg.get(group) is not None:
+            run_cfg[group] = fconf.load_preset(group, cfg[group])
+    if cfg.get("backend") is not None:  # a policy moved to another backend walks with that backend's gait
+        run_cfg.walk = fconf.load_preset("walk", backend=run_cfg.backend.name)
+    out_dir = Path(HydraConfig.get().runtime.output_dir)
+    return evaluate_run(run_cfg, run_dir, out_dir, cfg)
+
+
+def main() -> None:
+    register_schemas(controllers=True)  # the controller group's schemas, before hydra.main composes
+    hydra.main(config_path=str(conf_dir()), config_name="eval", version_base="1.3")(_main)()

@@ -1,0 +1,28 @@
+"""``footsim-train [overrides]``: train PPO on a composed config, then evaluate
+(:func:`footsim.rl.train.train`); a Hydra app on ``conf/config.yaml``, also under multirun launchers."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import hydra
+from hydra.core.hydra_config import HydraConfig
+from omegaconf import DictConfig
+
+from footsim.config import conf_dir
+from footsim.rl.common import CONFIG_FILE
+from footsim.rl.train import train
+
+
+def _main(cfg: DictConfig):
+    hydra_cfg = HydraConfig.get()
+    if cfg.get("resume"):
+        ignored = [o for o in hydra_cfg.overrides.task if o.split("=", 1)[0].lstrip("+~") != "resume"]
+        if ignored:  # the run's saved config decides; say so rather than drop them silently
+            print(f"resume: continuing with the run's saved config ({CONFIG_FILE}); ignoring {' '.join(ignored)}")
+    summary = train(cfg, Path(hydra_cfg.runtime.output_dir))
+    return summary.get("success") if summary else None
+
+
+def main() -> None:
+    hydra.main(config_path=str(conf_dir()), config_name="config", version_base="1.3")(_main)()
