@@ -515,7 +515,7 @@ class QuinticWalk:
         p = self.params
         half = self.half_period
         min_gap = 0.02 * half  # knots closer than this to t = 0 would make needlessly stiff segments
-        start = [(0.0, state[c, 0], state[c, 1], state[c, 2]) for c in range(6)]
+        start = [(0.0, position, velocity, acceleration) for position, velocity, acceleration in state.tolist()]
         t1 = self._apex_time(plan.kind)
 
         if plan.kind == WalkState.STOP_MOVEMENT:
