@@ -519,8 +519,8 @@ class QuinticWalk:
         t1 = self._apex_time(plan.kind)
 
         if plan.kind == WalkState.STOP_MOVEMENT:
-            target = self._standing_trunk_between(Pose2D(), plan.landing)
-            return [[start[c], (plan.duration, target[c, 0])] for c in (X, Y, Z, PITCH)]
+            target = self._standing_trunk_between(Pose2D(), plan.landing).tolist()
+            return [[start[c], (plan.duration, target[c][0])] for c in (X, Y, Z, PITCH)]
 
         if plan.kind == WalkState.START_MOVEMENT:
             # Head for the apex the start step will aim at (over the left foot, with the first-step
@@ -531,9 +531,9 @@ class QuinticWalk:
             )
             target = np.zeros((6, 3))
             target[:, :2] = at_support
-            target = _transform_trunk_state(target, plan.landing.inverse())
+            target = _transform_trunk_state(target, plan.landing.inverse()).tolist()
             t_target = plan.duration + t1 if plan.duration + t1 > min_gap else plan.duration + t1 + half
-            return [[start[c], (t_target, target[c, 0], target[c, 1])] for c in (X, Y, Z, PITCH)]
+            return [[start[c], (t_target, target[c][0], target[c][1])] for c in (X, Y, Z, PITCH)]
 
         at_support, at_next = self._trunk_apexes(plan.last, plan.landing, p.trunk_swing)
         if plan.kind == WalkState.START_STEP:
@@ -543,6 +543,8 @@ class QuinticWalk:
             # Come to rest standing between the feet instead of swinging over to the next foot.
             at_next = np.zeros((6, 2))
             at_next[:, 0] = self._standing_trunk_between(Pose2D(), plan.landing)[:, 0]
+        # Knots of Python floats: building the spline tables from numpy scalars costs twice as much.
+        at_support, at_next = at_support.tolist(), at_next.tolist()
         t2 = t1 + half
         pause = 0.5 * p.trunk_pause * half  # half the lateral hold at each apex [s]
         channels = []
@@ -561,8 +563,8 @@ class QuinticWalk:
                 channels.append(knots)
                 continue
             elif t1 > min_gap:
-                knots.append((t1, at_support[c, 0], at_support[c, 1]))
-            knots.append((t2, at_next[c, 0], at_next[c, 1]))
+                knots.append((t1, at_support[c][0], at_support[c][1]))
+            knots.append((t2, at_next[c][0], at_next[c][1]))
             channels.append(knots)
         return channels
 

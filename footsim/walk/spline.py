@@ -12,6 +12,7 @@ in one vectorised call: the walk engine evaluates a whole half step this way.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -141,7 +142,9 @@ def _padded_knots(channels: Sequence[Sequence[Knot]]) -> tuple[np.ndarray, np.nd
         rows += padded
         if len(padded) < max_knots:
             rows += padded[-1:] * (max_knots - len(padded))
-    return np.array(rows, dtype=float).reshape(len(channels), max_knots, 4), np.array(counts) - 1
+    # One flat iterator of floats: numpy converts it much faster than a list of tuples.
+    data = np.fromiter(itertools.chain.from_iterable(rows), dtype=float, count=4 * len(rows))
+    return data.reshape(len(channels), max_knots, 4), np.array(counts) - 1
 
 
 def _raise_for(status: int) -> None:
