@@ -172,13 +172,11 @@ def _transform_trunk_state(state: np.ndarray, frame: Pose2D) -> np.ndarray:
     rpy under a rotation about z only changes yaw (Rz(−θ)·Rz(y)Ry(p)Rx(r) = Rz(y−θ)Ry(p)Rx(r)).
     """
     c, s = math.cos(frame.theta), math.sin(frame.theta)
+    (x, vx, ax), (y, vy, ay) = state[X].tolist(), state[Y].tolist()  # six floats: cheaper than numpy
+    x, y = x - frame.x, y - frame.y
     out = state.copy()
-    dx = state[X].copy()
-    dy = state[Y].copy()
-    dx[0] -= frame.x
-    dy[0] -= frame.y
-    out[X] = c * dx + s * dy
-    out[Y] = -s * dx + c * dy
+    out[X] = (c * x + s * y, c * vx + s * vy, c * ax + s * ay)
+    out[Y] = (-s * x + c * y, -s * vx + c * vy, -s * ax + c * ay)
     out[YAW, 0] = state[YAW, 0] - frame.theta
     return out
 
