@@ -441,7 +441,7 @@ class QuinticWalk:
     def _trunk_apexes(self, last: Pose2D, landing: Pose2D, swing: float):
         """Trunk targets of a walking half step in the support frame.
 
-        Returns ``(at_support, at_next)``, each a (6, 2) array of (position, velocity) per
+        Returns ``(at_support, at_next)``, each six (position, velocity) pairs, one per
         channel (yaw is unused: it follows the feet): the apex over the support foot (time t1)
         and over the next support foot (t1 + half period).  Laterally the trunk stops short of
         each foot: it swings ``swing`` × half the lateral foot offset away from the middle.
@@ -462,29 +462,25 @@ class QuinticWalk:
             + p.trunk_x_offset_p_coef_forward * landing.x
             + p.trunk_x_offset_p_coef_turn * abs(landing.theta)
         )
-        at_support = np.array(
-            [
-                (offset_x, (landing.x - last.x) / period),
-                (p.trunk_y_offset + half_offset_y * (1.0 - swing), 0.0),
-                (p.trunk_height, 0.0),
-                (0.0, 0.0),
-                (pitch, 0.0),
-                (0.0, 0.0),
-            ]
-        )
+        at_support = [
+            (offset_x, (landing.x - last.x) / period),
+            (p.trunk_y_offset + half_offset_y * (1.0 - swing), 0.0),
+            (p.trunk_height, 0.0),
+            (0.0, 0.0),
+            (pitch, 0.0),
+            (0.0, 0.0),
+        ]
         c, s = math.cos(landing.theta), math.sin(landing.theta)
         offset_y = p.trunk_y_offset - half_offset_y * (1.0 - swing)
         speed = landing.x / half
-        at_next = np.array(
-            [
-                (landing.x + c * offset_x - s * offset_y, c * speed),
-                (landing.y + s * offset_x + c * offset_y, s * speed),
-                (p.trunk_height, 0.0),
-                (0.0, 0.0),
-                (pitch, 0.0),
-                (0.0, 0.0),
-            ]
-        )
+        at_next = [
+            (landing.x + c * offset_x - s * offset_y, c * speed),
+            (landing.y + s * offset_x + c * offset_y, s * speed),
+            (p.trunk_height, 0.0),
+            (0.0, 0.0),
+            (pitch, 0.0),
+            (0.0, 0.0),
+        ]
         return at_support, at_next
 
     def _apex_time(self, kind: WalkState) -> float:
@@ -509,7 +505,8 @@ class QuinticWalk:
         return channels
 
     def _trunk_translation_pitch_knots(self, plan: _HalfStep, state: np.ndarray, next_plan: _HalfStep | None) -> list:
-        """Knots of the trunk's x, y, z and pitch channels."""
+        """Knots of the trunk's x, y, z and pitch channels, of Python floats (numpy scalars would
+        double the cost of the spline's knot table)."""
         p = self.params
         half = self.half_period
         min_gap = 0.02 * half  # knots closer than this to t = 0 would make needlessly stiff segments
@@ -539,10 +536,9 @@ class QuinticWalk:
             at_support, _ = self._trunk_apexes(plan.last, plan.landing, p.trunk_swing * p.first_step_swing_factor)
         if plan.kind == WalkState.STOP_STEP:
             # Come to rest standing between the feet instead of swinging over to the next foot.
-            at_next = np.zeros((6, 2))
-            at_next[:, 0] = self._standing_trunk_between(Pose2D(), plan.landing)[:, 0]
-        # Knots of Python floats: building the spline tables from numpy scalars costs twice as much.
-        at_support, at_next = at_support.tolist(), at_next.tolist()
+            at_next = [
+                (position, 0.0) for position in self._standing_trunk_between(Pose2D(), plan.landing)[:, 0].tolist()
+            ]
         t2 = t1 + half
         pause = 0.5 * p.trunk_pause * half  # half the lateral hold at each apex [s]
         channels = []
