@@ -544,7 +544,10 @@ class Physics3DBackend(Backend):
         if error is None and not fell:
             error, fell = self._status()
         pose = self.planar_pose() if error is None else Pose2D(math.nan, math.nan, math.nan)
-        info = {"foot_interference": trajectory.interfered, "ik_unreachable_ticks": int((~trajectory.reachable).sum())}
+        info = {
+            "foot_interference": trajectory.interfered,
+            "ik_unreachable_ticks": n_ticks - int(np.count_nonzero(trajectory.reachable)),
+        }
         if self.randomization_detail:
             info["randomization_detail"] = dict(self.randomization_detail)
         return StepResult(
@@ -582,7 +585,8 @@ class Physics3DBackend(Backend):
             check = self._typed(state_ok, (state_ok, s), args)
             self._check = check, s, args
         if check(*args):
-            return None, self._record_tilt(float(self._tilt_buffer[0]), float(self._tilt_buffer[1]))
+            roll, pitch = self._tilt_buffer.tolist()
+            return None, self._record_tilt(roll, pitch)
         return self._full_status()
 
     def _record_tilt(self, roll: float, pitch: float) -> bool:

@@ -75,9 +75,9 @@ class WalkState(IntEnum):
 X, Y, Z, ROLL, PITCH, YAW = range(6)
 # Channels that move and get splines: the soles never roll (the flying sole pitches by
 # foot_apex_pitch) and the trunk never rolls, so the roll channels are constant zero and are not
-# evaluated.
-_FOOT_CHANNELS = [X, Y, Z, PITCH, YAW]
-_TRUNK_CHANNELS = [X, Y, Z, PITCH, YAW]
+# evaluated.  Index arrays: numpy indexes with them without converting a list at every call.
+_FOOT_CHANNELS = np.array([X, Y, Z, PITCH, YAW])
+_TRUNK_CHANNELS = np.array([X, Y, Z, PITCH, YAW])
 # Swing-path clearance: interior samples of the planar path checked against the support foot,
 # and the largest outward detour [m] the flying foot may take around it.
 _SWEEP_SAMPLES = np.linspace(0.0, 1.0, 25)[1:-1]
@@ -172,13 +172,11 @@ def _transform_trunk_state(state: np.ndarray, frame: Pose2D) -> np.ndarray:
     rpy under a rotation about z only changes yaw (Rz(−θ)·Rz(y)Ry(p)Rx(r) = Rz(y−θ)Ry(p)Rx(r)).
     """
     c, s = math.cos(frame.theta), math.sin(frame.theta)
+    (x, vx, ax), (y, vy, ay) = state[X].tolist(), state[Y].tolist()  # six floats: cheaper than numpy
+    x, y = x - frame.x, y - frame.y
     out = state.copy()
-    dx = state[X].copy()
-    dy = state[Y].copy()
-    dx[0] -= frame.x
-    dy[0] -= frame.y
-    out[X] = c * dx + s * dy
-    out[Y] = -s * dx + c * dy
+    out[X] = (c * x + s * y, c * vx + s * vy, c * ax + s * ay)
+    out[Y] = (-s * x + c * y, -s * vx + c * vy, -s * ax + c * ay)
     out[YAW, 0] = state[YAW, 0] - frame.theta
     return out
 
@@ -339,9 +337,9 @@ class QuinticWalk:
 
     def double_step(self, double_step: DoubleStep) -> WalkTrajectory:
         """All control ticks of one double step (preceded by the start movement when IDLE)."""
-        values = double_step.as_array()
-        if not np.all(np.isfinite(values)):
-            raise ValueError(f"double step contains NaN or inf: {values.tolist()}")
+        values = double_step.as_array().tolist()
+        if not all(map(math.isfinite, values)):  # six floats: cheaper than numpy's isfinite().all()
+            raise ValueError(f"double step contains NaN or inf: {values}")
         plans = []
         feet = self._feet
         if self._state == WalkState.IDLE:
@@ -443,7 +441,7 @@ class QuinticWalk:
     def _trunk_apexes(self, last: Pose2D, landing: Pose2D, swing: float):
         """Trunk targets of a walking half step in the support frame.
 
-        Returns ``(at_support, at_next)``, each a (6, 2) array of (position, velocity) per
+        Returns ``(at_support, at_next)``, each six (position, velocity) pairs, one per
         channel (yaw is unused: it follows the feet): the apex over the support foot (time t1)
         and over the next support foot (t1 + half period).  Laterally the trunk stops short of
         each foot: it swings ``swing`` × half the lateral foot offset away from the middle.
@@ -464,29 +462,25 @@ class QuinticWalk:
             + p.trunk_x_offset_p_coef_forward * landing.x
             + p.trunk_x_offset_p_coef_turn * abs(landing.theta)
         )
-        at_support = np.array(
-            [
-                (offset_x, (landing.x - last.x) / period),
-                (p.trunk_y_offset + half_offset_y * (1.0 - swing), 0.0),
-                (p.trunk_height, 0.0),
-                (0.0, 0.0),
-                (pitch, 0.0),
-                (0.0, 0.0),
-            ]
-        )
+        at_support = [
+            (offset_x, (landing.x - last.x) / period),
+            (p.trunk_y_offset + half_offset_y * (1.0 - swing), 0.0),
+            (p.trunk_height, 0.0),
+            (0.0, 0.0),
+            (pitch, 0.0),
+            (0.0, 0.0),
+        ]
         c, s = math.cos(landing.theta), math.sin(landing.theta)
         offset_y = p.trunk_y_offset - half_offset_y * (1.0 - swing)
         speed = landing.x / half
-        at_next = np.array(
-            [
-                (landing.x + c * offset_x - s * offset_y, c * speed),
-                (landing.y + s * offset_x + c * offset_y, s * speed),
-                (p.trunk_height, 0.0),
-                (0.0, 0.0),
-                (pitch, 0.0),
-                (0.0, 0.0),
-            ]
-        )
+        at_next = [
+            (landing.x + c * offset_x - s * offset_y, c * speed),
+            (landing.y + s * offset_x + c * offset_y, s * speed),
+            (p.trunk_height, 0.0),
+            (0.0, 0.0),
+            (pitch, 0.0),
+            (0.0, 0.0),
+        ]
         return at_support, at_next
 
     def _apex_time(self, kind: WalkState) -> float:
@@ -511,16 +505,17 @@ class QuinticWalk:
         return channels
 
     def _trunk_translation_pitch_knots(self, plan: _HalfStep, state: np.ndarray, next_plan: _HalfStep | None) -> list:
-        """Knots of the trunk's x, y, z and pitch channels."""
+        """Knots of the trunk's x, y, z and pitch channels, of Python floats (numpy scalars would
+        double the cost of the spline's knot table)."""
         p = self.params
         half = self.half_period
         min_gap = 0.02 * half  # knots closer than this to t = 0 would make needlessly stiff segments
-        start = [(0.0, state[c, 0], state[c, 1], state[c, 2]) for c in range(6)]
+        start = [(0.0, position, velocity, acceleration) for position, velocity, acceleration in state.tolist()]
         t1 = self._apex_time(plan.kind)
 
         if plan.kind == WalkState.STOP_MOVEMENT:
-            target = self._standing_trunk_between(Pose2D(), plan.landing)
-            return [[start[c], (plan.duration, target[c, 0])] for c in (X, Y, Z, PITCH)]
+            target = self._standing_trunk_between(Pose2D(), plan.landing).tolist()
+            return [[start[c], (plan.duration, target[c][0])] for c in (X, Y, Z, PITCH)]
 
         if plan.kind == WalkState.START_MOVEMENT:
             # Head for the apex the start step will aim at (over the left foot, with the first-step
@@ -531,9 +526,9 @@ class QuinticWalk:
             )
             target = np.zeros((6, 3))
             target[:, :2] = at_support
-            target = _transform_trunk_state(target, plan.landing.inverse())
+            target = _transform_trunk_state(target, plan.landing.inverse()).tolist()
             t_target = plan.duration + t1 if plan.duration + t1 > min_gap else plan.duration + t1 + half
-            return [[start[c], (t_target, target[c, 0], target[c, 1])] for c in (X, Y, Z, PITCH)]
+            return [[start[c], (t_target, target[c][0], target[c][1])] for c in (X, Y, Z, PITCH)]
 
         at_support, at_next = self._trunk_apexes(plan.last, plan.landing, p.trunk_swing)
         if plan.kind == WalkState.START_STEP:
@@ -541,8 +536,9 @@ class QuinticWalk:
             at_support, _ = self._trunk_apexes(plan.last, plan.landing, p.trunk_swing * p.first_step_swing_factor)
         if plan.kind == WalkState.STOP_STEP:
             # Come to rest standing between the feet instead of swinging over to the next foot.
-            at_next = np.zeros((6, 2))
-            at_next[:, 0] = self._standing_trunk_between(Pose2D(), plan.landing)[:, 0]
+            at_next = [
+                (position, 0.0) for position in self._standing_trunk_between(Pose2D(), plan.landing)[:, 0].tolist()
+            ]
         t2 = t1 + half
         pause = 0.5 * p.trunk_pause * half  # half the lateral hold at each apex [s]
         channels = []
@@ -561,8 +557,8 @@ class QuinticWalk:
                 channels.append(knots)
                 continue
             elif t1 > min_gap:
-                knots.append((t1, at_support[c, 0], at_support[c, 1]))
-            knots.append((t2, at_next[c, 0], at_next[c, 1]))
+                knots.append((t1, at_support[c][0], at_support[c][1]))
+            knots.append((t2, at_next[c][0], at_next[c][1]))
             channels.append(knots)
         return channels
 
