@@ -14,15 +14,18 @@ from __future__ import annotations
 import copy
 import functools
 import math
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from footsim import schema
+
+if TYPE_CHECKING:
+    from footsim.backends.base import Backend
 
 _PACKAGE_DIR = Path(__file__).resolve().parent
 #: The env's config groups, in the order ``FootstepEnv`` takes them.
@@ -138,7 +141,7 @@ def merge_checked(base: DictConfig, values: Mapping, where: str) -> DictConfig:
     conversions, which would read ``"2"`` as an integer)."""
     _check_keys(base, values, where)
     try:
-        return OmegaConf.merge(OmegaConf.create(plain_config(base)), values)
+        return cast(DictConfig, OmegaConf.merge(OmegaConf.create(plain_config(base)), values))
     except OmegaConfBaseException as err:
         raise ValueError(f"{where}: {str(err).splitlines()[0]}") from None
 
@@ -206,7 +209,7 @@ def upgrade_run_config(cfg: DictConfig) -> DictConfig:
     if "reward_weights" in cfg.task or "stability_scale" in cfg.task:
         weights = cfg.task.pop("reward_weights", None) or {}
         scale = cfg.task.pop("stability_scale", DEFAULT_REWARD["stability"]["params"]["scale"])
-        reward = {name: {"weight": float(weights.get(name, 0.0))} for name in DEFAULT_REWARD}
+        reward: dict[str, dict[str, Any]] = {name: {"weight": float(weights.get(name, 0.0))} for name in DEFAULT_REWARD}
         reward["stability"]["params"] = {"scale": scale}
         cfg.task.reward = reward
     return cfg
@@ -324,7 +327,8 @@ def build_noise(noise_cfg: Mapping):
     if unknown:
         raise ValueError(f"noise: unknown key(s) {unknown}; valid: {sorted(known)}")
     # delay_steps is a count: passed as given, NoiseModel rejects non-integers naming the key
-    return NoiseModel(**{k: (cfg[k] if k == "delay_steps" else _number(cfg, k, "noise")) for k in cfg})
+    values: dict[str, Any] = {k: (cfg[k] if k == "delay_steps" else _number(cfg, k, "noise")) for k in cfg}
+    return NoiseModel(**values)
 
 
 def build_walk(walk_cfg: Mapping):
@@ -364,7 +368,8 @@ def build_backend(backend_cfg: Mapping, robot, walk, task=None):
     _refuse_task_rules(cfg)
     if task is not None and cls.kind == "3d":
         cfg.update(fall_threshold=task.fall_threshold, collision_ends_episode=bool(task.collision_ends_episode))
-    return cls(robot=robot, walk=walk, **cfg)
+    construct: Callable[..., Backend] = cls  # every backend class takes the robot, the walk and its options
+    return construct(robot=robot, walk=walk, **cfg)
 
 
 def build_randomizer(randomization_cfg: Mapping | None, backend):

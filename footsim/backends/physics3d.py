@@ -349,7 +349,7 @@ class Physics3DBackend(Backend):
 
     # -- randomization --------------------------------------------------------------------
     @property
-    def capabilities(self) -> frozenset[str]:
+    def capabilities(self) -> frozenset[str]:  # type: ignore[override]  # derived from the sim, not assignable
         """The driver's terms (latency, pushes, walk jitter) and the sim's physics terms."""
         return DRIVER_TERMS | self.sim.capabilities
 
@@ -436,7 +436,7 @@ class Physics3DBackend(Backend):
             self.sim.apply_base_force(np.zeros(3))
             self._push_end = -1
         if tick >= self._next_push:
-            interval, duration = self._push_ticks
+            interval, duration = self._push_ticks  # type: ignore[misc]  # called only while pushes are scheduled
             if self._push_force > 0:
                 angle = float(self._rng.uniform(-math.pi, math.pi))
                 self.randomization_detail["push_direction"] = angle
@@ -529,7 +529,7 @@ class Physics3DBackend(Backend):
         error = None
         ticks, n_ticks, check = 0, len(trajectory.joint_targets), self.contact_check_every
         run = self._ticks(trajectory)
-        watch_contacts = bool(self.scene.all_obstacles)
+        watch_contacts = bool(self.scene.all_obstacles)  # type: ignore[union-attr]  # reset() set the scene
         while ticks < n_ticks:  # runs of `check` ticks, the checks between them
             start, ticks = ticks, min(ticks + check, n_ticks)
             run(start, ticks)
@@ -544,7 +544,7 @@ class Physics3DBackend(Backend):
         if error is None and not fell:
             error, fell = self._status()
         pose = self.planar_pose() if error is None else Pose2D(math.nan, math.nan, math.nan)
-        info = {
+        info: dict[str, object] = {
             "foot_interference": trajectory.interfered,
             "ik_unreachable_ticks": n_ticks - int(np.count_nonzero(trajectory.reachable)),
         }

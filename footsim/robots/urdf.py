@@ -97,7 +97,9 @@ def _weld_upper_body(robot: ET.Element, spec: RobotSpec) -> None:
             child = element.find(tag)
             if child is not None:
                 element.remove(child)
-        element.find("origin").set("rpy", _fmt(*_rpy(rotation)))
+        origin = element.find("origin")
+        assert origin is not None, "build_urdf gives every joint an <origin>"
+        origin.set("rpy", _fmt(*_rpy(rotation)))
 
 
 def build_urdf(spec: RobotSpec, rigid_upper_body: bool = False) -> ET.Element:
@@ -136,10 +138,10 @@ def build_urdf(spec: RobotSpec, rigid_upper_body: bool = False) -> ET.Element:
         _origin(inertial, Origin())
         ET.SubElement(inertial, "mass", value="0")
         ET.SubElement(inertial, "inertia", ixx="0", ixy="0", ixz="0", iyy="0", iyz="0", izz="0")
-        joint = ET.SubElement(robot, "joint", name=f"{name}_frame", type="fixed")
-        ET.SubElement(joint, "parent", link=foot)
-        ET.SubElement(joint, "child", link=name)
-        _origin(joint, Origin(offset))
+        frame_joint = ET.SubElement(robot, "joint", name=f"{name}_frame", type="fixed")
+        ET.SubElement(frame_joint, "parent", link=foot)
+        ET.SubElement(frame_joint, "child", link=name)
+        _origin(frame_joint, Origin(offset))
     if rigid_upper_body:
         _weld_upper_body(robot, spec)
     return robot

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import struct
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -20,7 +21,9 @@ from footsim.geometry import Pose2D, wrap_angle
 from footsim.scene import Obstacle, Scene, circle_array
 from footsim.tasks import rays
 from footsim.tasks.terms import (
+    RewardTerm,
     StepContext,
+    TerminationTerm,
     reward_table,
     reward_term,
     termination_table,
@@ -29,7 +32,7 @@ from footsim.tasks.terms import (
 
 #: The thesis 5.5 reward without obstacles (conf/task/nav.yaml), and "stability" (3D option:
 #: exp(-max trunk tilt / scale), weight 0 = off); the order is the order of the weighted sum.
-DEFAULT_REWARD = {
+DEFAULT_REWARD: dict[str, dict[str, Any]] = {
     "distance": {"weight": 0.3},
     "angle": {"weight": 0.3},
     "orientation": {"weight": 0.2},
@@ -66,6 +69,12 @@ class NavTaskConfig:
     path_hint_lookahead: float = 0.5  # [m] along the path past its point closest to the believed pose
     path_hint_clearance: float = 0.2  # [m] inflation of the obstacles for the path (footprint + margin)
     success_bonus: float = 1.0  # reward per remaining step on success (thesis: 1, the maximum step reward)
+    # Derived in __post_init__ (not constructor arguments):
+    uses_tilt: bool = field(init=False, repr=False, compare=False)
+    reward_terms: tuple[RewardTerm, ...] = field(init=False, repr=False, compare=False)
+    termination_terms: tuple[TerminationTerm, ...] = field(init=False, repr=False, compare=False)
+    ray_directions: np.ndarray = field(init=False, repr=False, compare=False)
+    ray_miss: float = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         for key in (
@@ -142,7 +151,7 @@ def goal_features(pose: Pose2D, goal: Pose2D) -> tuple[float, float, float]:
 
 
 _PI, _TWO_PI, _fmod = math.pi, 2.0 * math.pi, math.fmod
-_pack_floats = struct.Struct("=17f").pack_into  # 17 floats into a float32 buffer
+_pack_floats: Callable[..., None] = struct.Struct("=17f").pack_into  # 17 floats into a float32 buffer
 
 
 _RAY_DIRECTIONS: dict[int, np.ndarray] = {}
@@ -257,6 +266,7 @@ def continuity(step: StepContext) -> float:
 @reward_term(needs=("tilt",))
 def stability(step: StepContext, scale: float) -> float:
     """exp(-max tilt / scale) of the largest trunk roll or pitch during the step (3D option)."""
+    assert step.max_tilt is not None, "the task fills max_tilt when a weighted term needs the tilt"
     return math.exp(-abs(step.max_tilt) / scale)
 
 
@@ -276,7 +286,7 @@ def _continuity(action, previous_action) -> float:
             + exp(-3.0 * abs(a4 - b4))
             + exp(-3.0 * abs(a5 - b5))
         ) / 6
-    total = 0
+    total = 0.0
     for x, y in zip(a, b):
         total += exp(-3.0 * abs(x - y))
     return total / len(a)
@@ -500,14 +510,15 @@ class NavTask:
 
         ``result`` is the backend's ``StepResult`` (a non-finite pose becomes a sim error and the
         last finite pose is kept: the learner never sees NaN); ``action`` the 6 unit-box floats."""
-        config, step = self.config, self._step
+        config, step, scene = self.config, self._step, self.scene
+        assert scene is not None, "reset() before step()"
         self.steps += 1
         pose = result.pose
         if result.sim_error is None and _isfinite(pose[0]) and _isfinite(pose[1]) and _isfinite(pose[2]):
             self.pose = pose
         else:
             result.sim_error = result.sim_error or "non-finite pose"
-        features = self._features = goal_features(self.pose, self.scene.goal)
+        features = self._features = goal_features(self.pose, scene.goal)
         step.pose, step.result, step.steps = self.pose, result, self.steps
         step.distance, step.alpha, step.beta = features
         step.action, step.previous_action = action, self.previous_actions[0]
@@ -515,7 +526,7 @@ class NavTask:
             step.max_tilt = result.max_tilt
             self.tilt = (*result.tilt, result.max_tilt)
         terms = {}
-        reward = 0  # the weighted sum, left to right in table order
+        reward = 0.0  # the weighted sum, left to right in table order
         for name, call, weight in self._rewards:
             value = terms[name] = call(step)
             reward += weight * value
@@ -537,6 +548,7 @@ class NavTask:
         """The observation from the pose the robot believes it has (see :func:`observation`)."""
         hint = _NO_HINT if self._path_hint is None else self._path_hint.bearing(believed)
         features = self._features if believed is self.pose else None
+        assert self.scene is not None, "reset() before observe()"
         return observation(
             believed, self.scene, self.previous_actions, self.config, features, self.tilt, hint, self._arrays
         )

@@ -17,6 +17,7 @@ import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -112,7 +113,7 @@ def sample_scenes(sampler: SceneSampler, n: int, seed: int) -> list[Scene]:
 
 
 def save_scenes(path: str | os.PathLike, scenes: list[Scene], meta: dict | None = None) -> None:
-    payload = {"scenes": [s.to_dict() for s in scenes]}
+    payload: dict[str, Any] = {"scenes": [s.to_dict() for s in scenes]}
     if meta:
         payload["meta"] = meta
     atomic_write_text(path, json.dumps(payload, indent=1))

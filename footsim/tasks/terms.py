@@ -23,7 +23,13 @@ import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import partial
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from footsim.geometry import Pose2D
+    from footsim.scene import Scene
 
 #: What a term may need beyond the pose and actions: "tilt" is the backend's trunk tilt, which the
 #: task asks for only when a weighted term or the observation uses it.
@@ -55,9 +61,18 @@ class StepContext:
         "config",
     )
 
+    pose: Pose2D
+    scene: Scene
+    arrays: tuple[np.ndarray, np.ndarray]
+    result: Any
+    max_tilt: float | None
+    action: Any
+    previous_action: Any
+
     def __init__(self, config: Any = None):
         self.config = config
-        self.pose = self.scene = self.arrays = self.result = self.max_tilt = None
+        # pose, scene and arrays stay unset until the task fills them, before any term runs
+        self.result = self.max_tilt = None
         self.distance = self.alpha = self.beta = 0.0
         self.action = self.previous_action = None
         self.steps = 0

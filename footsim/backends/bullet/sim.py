@@ -91,7 +91,8 @@ def _quiet():
 
 def _quat_xyzw(rotation: np.ndarray) -> tuple[float, float, float, float]:
     """Bullet's (x, y, z, w) quaternion of a rotation matrix (scipy's convention is the same)."""
-    return tuple(float(v) for v in Rotation.from_matrix(rotation).as_quat())
+    x, y, z, w = (float(v) for v in Rotation.from_matrix(rotation).as_quat())
+    return x, y, z, w
 
 
 class PybulletSim(PhysicsSim):
@@ -165,11 +166,11 @@ class PybulletSim(PhysicsSim):
         self.camera_distance, self.camera_pitch = float(camera_distance), float(camera_pitch)
         self.client = -1
         self._urdf_path: str | None = None
-        self._finalizer = None
+        self._finalizer: weakref.finalize | None = None
         self.robot_id = -1
         self.obstacle_ids: list[int] = []
-        self._placed: list = []
-        self._stand_ins: list[int] = []
+        self._placed: list[tuple[str, float, list[float]]] = []  # this episode's (kind, radius, position)
+        self._stand_ins: list[int] = []  # render-only visual bodies of this episode's obstacles
         self._goal_marker = -1
         self._scene: Scene | None = None
         # Randomization (apply_physics_randomization): scales in force, per-tick external wrench.
@@ -259,11 +260,11 @@ class PybulletSim(PhysicsSim):
         self._com_pos = np.array(dyn[3])
         self._com_orn = tuple(dyn[4])
         self._com_rot = np.array(p.getMatrixFromQuaternion(self._com_orn)).reshape(3, 3)
-        self.obstacle_ids: list[int] = []
+        self.obstacle_ids = []
         self._free: dict[str, list[int]] = {}  # parked obstacle bodies per kind ("cylinder", "ball")
         self._pool_kind: dict[int, str] = {}
-        self._placed: list[tuple[str, float, list[float]]] = []  # this episode's (kind, radius, position)
-        self._stand_ins: list[int] = []  # render-only visual bodies of this episode's obstacles
+        self._placed = []
+        self._stand_ins = []
         self._goal_marker = -1
         # Nominal masses and inertia diagonals of every robot link (-1: the torso), for randomization.
         self.nominal_dynamics = {
@@ -324,7 +325,7 @@ class PybulletSim(PhysicsSim):
         # velocity of the inertial frame) read into one array; the leg commands sent from another.
         self._base = np.zeros(13)
         self._command = np.zeros(len(LEG_JOINT_NAMES))
-        self._feed_forward = None
+        self._feed_forward: ServoFeedForward | None = None
         if self.motor == "servo":
             dt = self.control_dt if self.control_dt is not None else self.physics_dt
             self._feed_forward = ServoFeedForward(self.servo_kv, np.ones(len(LEG_JOINT_NAMES)), dt)
@@ -371,6 +372,7 @@ class PybulletSim(PhysicsSim):
             for j in map(self.spec.joint, LEG_JOINT_NAMES)
         ]
         dt = self.control_dt if self.control_dt is not None else self.physics_dt
+        assert self._feed_forward is not None, "servo motors only"
         self._feed_forward.gain[:] = [kv / kp / dt for kp, kv, _, _ in self._servo]  # the servo's kv / kp
 
     def set_obstacles(self, scene: Scene) -> None:
@@ -465,6 +467,7 @@ class PybulletSim(PhysicsSim):
                 body, self.joint_index[name], float(joint_positions.get(name, 0.0)), 0.0, physicsClientId=c
             )
         if self.motor == "servo":  # target velocities restart from rest at these angles
+            assert self._feed_forward is not None
             self._feed_forward.reset([float(joint_positions.get(n, 0.0)) for n in LEG_JOINT_NAMES])
             self._command[:] = self._feed_forward.previous
         others = [self.joint_index[n] for n in self.other_names]

@@ -31,9 +31,8 @@ def release(client: int, path: str | None, key: tuple | None, world: dict | None
     """Park ``world`` under ``key`` for reuse (None: disconnect ``client``); remove the URDF file ``path``."""
     try:
         if p.isConnected(client):
-            idle = _idle.setdefault(key, []) if key is not None and world is not None else None
-            if idle is not None and sum(map(len, _idle.values())) < MAX_IDLE:
-                idle.append(world)
+            if key is not None and world is not None and sum(map(len, _idle.values())) < MAX_IDLE:
+                _idle.setdefault(key, []).append(world)
             else:
                 p.disconnect(client)
     except Exception:  # pragma: no cover - interpreter shutdown

@@ -32,6 +32,7 @@ import logging
 import math
 import os
 import sys
+from typing import Any
 
 import numpy as np
 
@@ -127,7 +128,8 @@ def _camera_frame() -> tuple[np.ndarray, np.ndarray]:
 class DmControlSim(MujocoEngineSim):
     """``PhysicsSim`` on dm_control: an ``mjcf`` model, ``mjcf.Physics``, bindings by name."""
 
-    mjcf_model = physics = None  # set by build()
+    mjcf_model: Any = None  # dm_control's mjcf.RootElement and mjcf.Physics (untyped), set by build()
+    physics: Any = None
     engine_label = "dm_control"
     _error: str | None = None
 
@@ -313,7 +315,7 @@ class DmControlSim(MujocoEngineSim):
         self.physics = self.mjcf_model = None
         self._root = self._legs = self._soles = self._pool_bound = None
         self._ctrl = self._qpos = self._qvel = self._root_q = self._warnings = None
-        self.state = None  # views of the freed mjData
+        self.state = None  # type: ignore[assignment]  # closed: drop the views of the freed mjData
         self._pool, self.joints, self.actuators = [], {}, {}
 
 

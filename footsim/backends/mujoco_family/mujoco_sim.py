@@ -14,6 +14,8 @@ itself, and a control tick's physics is one ``mj_step(model, data, n)``.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from footsim.backends.base import RenderOverlay
@@ -47,7 +49,8 @@ from footsim.walk.ik import LEG_JOINT_NAMES
 class MujocoSim(MujocoEngineSim):
     """``PhysicsSim`` on the ``mujoco`` bindings (position actuators, implicitfast)."""
 
-    model = data = None  # set by build()
+    model: Any = None  # mujoco.MjModel (untyped bindings), set by build()
+    data: Any = None  # mujoco.MjData
     _renderer = None
 
     # -- world ------------------------------------------------------------------------------
@@ -233,7 +236,8 @@ class MujocoSim(MujocoEngineSim):
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
-        self.model = self.data = self._warnings = self.state = None
+        self.model = self.data = self._warnings = None
+        self.state = None  # type: ignore[assignment]  # closed: no state until the next build()
 
 
 class MujocoBackend(Physics3DBackend):

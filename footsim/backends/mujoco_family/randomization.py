@@ -32,11 +32,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from footsim.backends.physics3d import PHYSICS_TERMS
 from footsim.robots.mjcf import FLOOR_GEOM, import_mujoco
+
+if TYPE_CHECKING:
+    from footsim.backends.control import ServoFeedForward
+    from footsim.robots.spec import RobotSpec
 
 _FRICTION_TERMS = ("floor_friction", "foot_friction")
 _MASS_TERMS = ("link_mass_scale", "torso_com_offset_x", "torso_com_offset_y")
@@ -186,6 +191,13 @@ class MujocoRandomization:
     ``self.model`` / ``self.data`` (mujoco) or ``self.physics`` (dm_control)."""
 
     capabilities = PHYSICS_TERMS  # all of them
+    # Provided by the sim:
+    robot: RobotSpec
+    joint_names: tuple[str, ...]
+    _feed_forward: ServoFeedForward | None
+    # This mixin's own (set on first use):
+    _ff_gain: np.ndarray | None  # the nominal feed-forward gain of a sim without a ServoFeedForward
+    _mj_rand_state: tuple[Any, MujocoNominal, np.ndarray | None]  # model, its nominal values and gain
 
     def mj_model_data(self):
         """The raw ``mujoco.MjModel`` and ``MjData`` of this sim (dm-control: its physics' pointers)."""
@@ -237,8 +249,9 @@ class MujocoRandomization:
         nominal_ff = self._mj_rand_state[2]
         if nominal_ff is not None:  # keep the D term kv (qdot_t - qdot) with the new kp
             gain = nominal_ff / _positive(values, "actuator_kp_scale")
-            if getattr(self, "_feed_forward", None) is not None:
-                self._feed_forward.gain[:] = gain  # in place: the driver's compiled tick holds the array
+            ff = getattr(self, "_feed_forward", None)
+            if ff is not None:
+                ff.gain[:] = gain  # in place: the driver's compiled tick holds the array
             else:
                 self._ff_gain = gain
 

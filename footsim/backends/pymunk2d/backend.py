@@ -209,6 +209,7 @@ class Pymunk2DBackend(Backend):
         after_first, after_second, executed, n_interfered = self.geometry.execute(
             before, double_step, self._perturb if perturbed else None
         )
+        assert self.scene is not None  # reset() set it with the feet
         if not self.scene.circles:
             collided = False
         elif self.collision_model == "footprint":
@@ -258,6 +259,7 @@ class Pymunk2DBackend(Backend):
         geometry's: both feet shift rigidly with the navigation frame (half the correction at the
         half step); the residual noise and the fall draw come from the episode rng."""
         model = self.execution_model
+        assert model is not None, "called only with an execution model"
         start, predicted = before.nav_pose, after_second.nav_pose
         dx, dy, dtheta = model.predict(start.relative(predicted), self._rng)
         correction = predicted.relative(start.compose(Pose2D(float(dx), float(dy), float(dtheta))))
@@ -283,6 +285,7 @@ class Pymunk2DBackend(Backend):
     def _nav_too_close(self, nav: Pose2D) -> bool:
         """Thesis check: the navigation pose within ``collision_distance`` of a circle's edge."""
         x, y, margin = nav[0], nav[1], self.collision_distance
+        assert self.scene is not None
         return any(math.hypot(x - cx, y - cy) - r < margin for cx, cy, r in self.scene.circles)
 
     # -- rendering ------------------------------------------------------------------------
