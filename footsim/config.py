@@ -165,11 +165,16 @@ def _base_preset(group: str, spec: str | Mapping | None) -> str | None:
     return name if name in available(group) else None
 
 
+def _where(group: str, spec: Mapping) -> str:
+    """How an error names a mapping's group: a backend by its name (``backend mujoco``)."""
+    return f"backend {spec['name']}" if group == "backend" and "name" in spec else group
+
+
 def preset_config(group: str, spec: str | Mapping | None = None, *, backend: str | None = None) -> DictConfig:
     """A group's config, composed: a preset name, or a mapping merged over its base preset
     (:func:`_base_preset`; the group's default, for ``walk`` the one of ``backend``)."""
     base = _preset_node(group, _base_preset(group, spec), backend)
-    return base if spec is None or isinstance(spec, str) else merge_checked(base, to_plain(spec), group)
+    return base if spec is None or isinstance(spec, str) else merge_checked(base, to_plain(spec), _where(group, spec))
 
 
 #: Episode rules that belong to the task config, never to a backend's.
@@ -250,7 +255,7 @@ def env_config(
         node = (
             composed[group]
             if spec is None or isinstance(spec, str)
-            else merge_checked(composed[group], to_plain(spec), group)
+            else merge_checked(composed[group], to_plain(spec), _where(group, spec))
         )
         out[group] = plain_config(node)
     return out

@@ -68,7 +68,7 @@ def test_keyword_api_merges_mappings_over_presets():
     [
         (
             {"backend": {"name": "mujoco", "servo_kp": 2.0}},
-            r"backend: unknown key\(s\) \['servo_kp'\]; valid: \[.*'servo_kp_scale'",
+            r"backend mujoco: unknown key\(s\) \['servo_kp'\]; valid: \[.*'servo_kp_scale'",
         ),
         ({"task": {"scenes": {"n_obstacle": 2}}}, r"task\.scenes: unknown key\(s\) \['n_obstacle'\]"),
         ({"walk": {"frequency": 1.0}}, r"walk: unknown key\(s\) \['frequency'\]; valid: \[.*'freq'"),
