@@ -23,6 +23,13 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from footsim import schema
+from footsim.backends.base import BACKENDS, backend_class
+from footsim.randomization import Randomizer, parse_terms
+from footsim.robots.registry import get_robot, robot_from_config
+from footsim.tasks.nav import DEFAULT_REWARD, NavTaskConfig
+from footsim.tasks.noise import NoiseModel
+from footsim.tasks.scenes import SceneSampler
+from footsim.walk.params import WalkParams
 
 if TYPE_CHECKING:
     from footsim.backends.base import Backend
@@ -99,8 +106,6 @@ def compose(config_name: str | None = "env", overrides: Sequence[str] = ()) -> D
 def _check_preset(group: str, name: Any) -> str:
     if not isinstance(name, str) or name not in available(group):
         if group == "backend":
-            from footsim.backends.base import BACKENDS
-
             raise ValueError(f"unknown backend {name!r}; valid backends: {', '.join(BACKENDS)}")
         raise ValueError(f"unknown {group} preset {name!r}; available: {', '.join(available(group))}")
     return name
@@ -199,7 +204,6 @@ def upgrade_run_config(cfg: DictConfig) -> DictConfig:
     old_rules = [k for k in TASK_RULES if k in backend]
     if not old_rules and "reward_weights" not in task and "stability_scale" not in task:
         return cfg
-    from footsim.tasks.nav import DEFAULT_REWARD, NavTaskConfig
 
     cfg = copy.deepcopy(cfg)
     OmegaConf.set_struct(cfg, False)
@@ -290,8 +294,6 @@ def _field_types(schema_class: type) -> dict[str, Any]:
 def build_task(task_cfg: Mapping):
     """``(SceneSampler, NavTaskConfig)`` from a task config, naming any bad key (the keys and the
     numeric ones come from :class:`footsim.schema.TaskConfig`)."""
-    from footsim.tasks.nav import NavTaskConfig
-    from footsim.tasks.scenes import SceneSampler
 
     types = _field_types(schema.TaskConfig)
     cfg = dict(task_cfg)
@@ -323,7 +325,6 @@ def build_task(task_cfg: Mapping):
 
 
 def build_noise(noise_cfg: Mapping):
-    from footsim.tasks.noise import NoiseModel
 
     cfg = dict(noise_cfg)
     cfg.pop("name", None)
@@ -337,7 +338,6 @@ def build_noise(noise_cfg: Mapping):
 
 
 def build_walk(walk_cfg: Mapping):
-    from footsim.walk.params import WalkParams
 
     cfg = dict(walk_cfg)
     cfg.pop("name", None)
@@ -345,14 +345,12 @@ def build_walk(walk_cfg: Mapping):
 
 
 def build_robot(robot_cfg: Mapping | str):
-    from footsim.robots.registry import get_robot, robot_from_config
 
     return get_robot(robot_cfg) if isinstance(robot_cfg, str) else robot_from_config(dict(robot_cfg))
 
 
 def backend_kind(backend_cfg: Mapping) -> str:
     """ "2d" or "3d": the kind of the backend a config names (imports its module, not its simulator's state)."""
-    from footsim.backends.base import backend_class
 
     if backend_cfg.get("name") is None:
         raise ValueError("backend: config has no 'name'")
@@ -363,7 +361,6 @@ def build_backend(backend_cfg: Mapping, robot, walk, task=None):
     """The backend a config names; a 3D backend also gets the task's ``fall_threshold`` and
     ``collision_ends_episode`` (``task``: a resolved ``NavTaskConfig``; its driver stops simulating
     a double step early when the task will end the episode)."""
-    from footsim.backends.base import backend_class
 
     cfg = dict(backend_cfg)
     name = cfg.pop("name", None)
@@ -379,7 +376,6 @@ def build_backend(backend_cfg: Mapping, robot, walk, task=None):
 
 def build_randomizer(randomization_cfg: Mapping | None, backend):
     """A ``Randomizer`` for the backend's section of the preset; unsupported terms fail here."""
-    from footsim.randomization import Randomizer, parse_terms
 
     section = "terms_2d" if backend.kind == "2d" else "terms_3d"
     return Randomizer(parse_terms(randomization_cfg, section), backend.name, backend.capabilities)

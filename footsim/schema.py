@@ -25,6 +25,9 @@ from typing import Any, Dict, List, Optional  # noqa: UP035  (OmegaConf reads th
 
 from omegaconf import MISSING
 
+from footsim.tasks.noise import NoiseModel
+from footsim.walk.params import WalkParams
+
 # ruff: noqa: UP006, UP007, UP045  (structured configs need typing's Dict / List / Optional)
 
 
@@ -275,8 +278,6 @@ def derived_schema(cls_name: str, source: type, *, named: bool, doc: str) -> typ
 
 
 def _env_derived() -> dict[str, type]:
-    from footsim.tasks.noise import NoiseModel
-    from footsim.walk.params import WalkParams
 
     return {
         "walk": derived_schema("WalkConfig", WalkParams, named=False, doc="The walk engine's parameters (WalkParams)."),

@@ -11,7 +11,7 @@ import sys
 
 from footsim import config as fconf
 from footsim.env import FootstepEnv
-from footsim.planners import make_controller
+from footsim.planners.controllers import make_controller
 from footsim.rl.evaluate import evaluate, summarize
 from footsim.tasks.scenes import sample_scenes
 

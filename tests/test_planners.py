@@ -7,7 +7,7 @@ import pytest
 
 from footsim.env import FootstepEnv
 from footsim.geometry import Pose2D
-from footsim.planners import make_controller
+from footsim.planners.controllers import make_controller
 from footsim.planners.footstep import FootstepParams, FootstepPlanner, feet_from_nav
 from footsim.planners.grid import Costmap, cell_path_length, distance_to_goal_map, grid_search, plan_path
 from footsim.planners.velocity import VelocityController, VelocityParams, carrot_command, smooth

@@ -17,6 +17,7 @@ import time
 
 import numpy as np
 
+from footsim.calibration.walkcheck import make_backend
 from footsim.geometry import Pose2D
 from footsim.scene import Scene
 from footsim.walk.footsteps import DoubleStep
@@ -48,8 +49,6 @@ def bench_backend(name: str, repeats: int = 100, seed: int = 0) -> dict:
     by building and running it),
     plus ``fell`` (whether the pattern made it fall — the figures are then not comparable).
     """
-    from footsim.calibration.walkcheck import make_backend
-
     if repeats < 1:
         raise ValueError(f"repeats must be >= 1, got {repeats!r}")
     rss_before = _rss_mb()

@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from footsim.env import FootstepEnv
-from footsim.planners import make_controller
+from footsim.planners.controllers import make_controller
 from footsim.tasks.scenes import sample_scenes
 
 

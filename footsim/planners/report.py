@@ -26,7 +26,7 @@ import numpy as np
 from footsim.config import load_preset
 from footsim.env import FootstepEnv
 from footsim.geometry import Pose2D
-from footsim.planners import make_controller
+from footsim.planners.controllers import make_controller
 from footsim.rl.common import LoadedPolicy
 from footsim.rl.evaluate import PolicyController, format_table
 from footsim.robots.registry import get_robot

@@ -20,7 +20,7 @@ import numpy as np
 
 from footsim import config as fconf
 from footsim.env import FootstepEnv, make_env
-from footsim.planners import make_controller
+from footsim.planners.controllers import make_controller
 from footsim.rl.common import LoadedPolicy, write_json
 from footsim.scene import Scene
 from footsim.tasks.scenes import load_scenes, sample_scenes

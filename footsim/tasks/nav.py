@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from footsim.geometry import Pose2D, wrap_angle
+from footsim.planners.grid import Costmap, densify, plan_path
 from footsim.scene import Obstacle, Scene, circle_array
 from footsim.tasks import rays
 from footsim.tasks.terms import (
@@ -417,8 +418,6 @@ class PathHint:
     """
 
     def __init__(self, scene: Scene, start: Pose2D, config: NavTaskConfig):
-        from footsim.planners.grid import Costmap, densify, plan_path
-
         self.lookahead = float(config.path_hint_lookahead)
         goal = (scene.goal.x, scene.goal.y)
         points = np.array([[start.x, start.y], goal], dtype=float)
