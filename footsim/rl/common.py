@@ -18,6 +18,19 @@ MODEL_FILE = "model.zip"
 VECNORM_FILE = "vecnormalize.pkl"
 CONFIG_FILE = "config.yaml"
 CHECKPOINT_DIR = "checkpoints"
+#: The metrics of eval/summary.json that tables show first, in this order (other scalar keys follow).
+SUMMARY_METRICS = (
+    "episodes",
+    "success",
+    "timeout",
+    "fall",
+    "collision",
+    "sim_error",
+    "success_time_mean",
+    "success_time_std",
+    "success_steps_mean",
+    "success_steps_std",
+)
 
 
 def write_json(path: str | os.PathLike, data) -> None:

@@ -28,24 +28,11 @@ from hydra.experimental.callback import Callback
 from hydra.types import RunMode
 from omegaconf import OmegaConf
 
-from footsim.rl.common import write_json
+from footsim.rl.common import SUMMARY_METRICS, write_json
 from footsim.utils import atomic_write_text
 
 FAILED_FILE = "FAILED.json"
 SUMMARY_FILE = Path("eval") / "summary.json"
-# eval/summary.json keys shown first, in this order; other scalar keys follow alphabetically
-METRIC_ORDER = (
-    "episodes",
-    "success",
-    "timeout",
-    "fall",
-    "collision",
-    "sim_error",
-    "success_time_mean",
-    "success_time_std",
-    "success_steps_mean",
-    "success_steps_std",
-)
 
 
 # -- failure marker ---------------------------------------------------------------------------
@@ -152,7 +139,7 @@ def _columns(rows: list[dict]) -> tuple[list[str], list[str]]:
     for row in rows:
         override_keys += [k for k in row["overrides"] if k not in override_keys]
     metric_keys = {k for row in rows for k in row["metrics"]}
-    ordered = [k for k in METRIC_ORDER if k in metric_keys] + sorted(metric_keys - set(METRIC_ORDER))
+    ordered = [k for k in SUMMARY_METRICS if k in metric_keys] + sorted(metric_keys - set(SUMMARY_METRICS))
     return override_keys, ordered
 
 

@@ -30,24 +30,12 @@ import numpy as np
 from omegaconf import OmegaConf
 
 from footsim import config as fconf
-from footsim.rl.common import CONFIG_FILE, MODEL_FILE, load_run_config
+from footsim.rl.common import CONFIG_FILE, MODEL_FILE, SUMMARY_METRICS, load_run_config
 from footsim.rl.evaluate import evaluate_run
 from footsim.tasks.scenes import sample_scenes, save_scenes
 from footsim.utils import atomic_save, atomic_write_text
 
-METRICS = (
-    "episodes",
-    "success",
-    "timeout",
-    "fall",
-    "collision",
-    "sim_error",
-    "success_time_mean",
-    "success_time_std",
-    "success_steps_mean",
-    "success_steps_std",
-)
-COLUMNS = ("train_backend", "eval_backend", "randomization", *METRICS, "run", "eval_dir")
+COLUMNS = ("train_backend", "eval_backend", "randomization", *SUMMARY_METRICS, "run", "eval_dir")
 
 
 # -- 1. training --------------------------------------------------------------------------------
@@ -320,7 +308,7 @@ def transfer_matrix(cfg: dict, train_overrides: list[str]) -> list[dict]:
                         "train_backend": run_cfg.backend.name,
                         "eval_backend": eval_backend,
                         "randomization": rand,
-                        **{k: summary.get(k) for k in METRICS},
+                        **{k: summary.get(k) for k in SUMMARY_METRICS},
                         "run": str(run),
                         "eval_dir": str(cell_dir),
                     }
