@@ -179,3 +179,11 @@ def test_mujoco_map_of_three_forward_steps(tmp_path):
     assert (in_place.falls, in_place.landed) == (0, 1)
     # the soles land within a few centimetres and degrees of the footstep geometry's landing
     assert in_place.position_error_mean < 0.03 and in_place.yaw_error_mean < math.radians(5)
+
+
+def test_the_x_y_panels_together_show_every_same_step_cell():
+    keys = [tuple(row[:3]) for row in cap.capability_grid()]
+    xy, others = cap.slice_panels(keys)
+    assert [panel[3] for panel in xy] == [-1.0, -0.5, 0.0, 0.5, 1.0]  # one x–y panel per theta level
+    assert all(panel[:3] == ("x", "y", "theta") for panel in xy)
+    assert others == [("x", "theta", "y", 0.0), ("y", "theta", "x", 0.0)]

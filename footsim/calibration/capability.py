@@ -20,7 +20,7 @@ independent and each draws its own randomization; without randomization the simu
 deterministic and the repeats of a cell agree exactly (``repeats`` matters with ``randomization``).
 
 The map is a CSV (one row per cell) and heatmaps of slices of the box where both feet take the
-same step; :func:`compare_maps` draws where two maps disagree.
+same step (:func:`slice_panels`); :func:`compare_maps` draws where two maps disagree.
 """
 
 from __future__ import annotations
@@ -50,8 +50,6 @@ AXES = ("x", "y", "theta")
 #: Unit-action columns: the right foot's step (it flies first), then the left foot's.
 ACTION_COLUMNS = ("right_x", "right_y", "right_theta", "left_x", "left_y", "left_theta")
 DEFAULT_GRID = "same:5"
-#: The heatmap slices: (horizontal axis, vertical axis, the axis held at its level nearest 0).
-SLICES = (("x", "y", "theta"), ("x", "theta", "y"), ("y", "theta", "x"))
 
 
 # -- the grid -----------------------------------------------------------------------------------
@@ -390,17 +388,29 @@ def _same_step(cells: Sequence[Cell]) -> dict[tuple[float, float, float], Cell]:
     return {c.action[:3]: c for c in cells if c.action[:3] == c.action[3:]}
 
 
-def _slice(same: Mapping[tuple[float, float, float], Any], horizontal: str, vertical: str, held: str):
-    """``(horizontal levels, vertical levels, held level, {(h, v): value})`` of one slice: the
-    held axis at its level nearest 0."""
+def _slice(same: Mapping[tuple[float, float, float], Any], horizontal: str, vertical: str, held: str, level: float):
+    """``(horizontal levels, vertical levels, {(h, v): value})`` of the slice with ``held`` at ``level``."""
     index = {a: AXES.index(a) for a in AXES}
-    levels = sorted({key[index[held]] for key in same})
-    level = min(levels, key=abs)
     keys = [k for k in same if k[index[held]] == level]
     hs = sorted({k[index[horizontal]] for k in keys})
     vs = sorted({k[index[vertical]] for k in keys})
     values = {(k[index[horizontal]], k[index[vertical]]): same[k] for k in keys}
-    return hs, vs, level, values
+    return hs, vs, values
+
+
+def slice_panels(keys: Sequence[tuple[float, float, float]]) -> list[list[tuple[str, str, str, float]]]:
+    """The heatmap panels ``(horizontal, vertical, held axis, held level)`` in rows: x–y at every
+    theta level of the grid (together: every same-step cell), then x–theta at y and y–theta at x,
+    each held at its level nearest 0."""
+
+    def nearest_zero(axis: str) -> float:
+        return min({k[AXES.index(axis)] for k in keys}, key=abs)
+
+    thetas = sorted({k[2] for k in keys})
+    return [
+        [("x", "y", "theta", t) for t in thetas],
+        [("x", "theta", "y", nearest_zero("y")), ("y", "theta", "x", nearest_zero("x"))],
+    ]
 
 
 def _draw_slices(
@@ -419,33 +429,40 @@ def _draw_slices(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, len(SLICES), figsize=(5.2 * len(SLICES), 4.6), constrained_layout=True)
+    panels = slice_panels(list(same))
+    ncols = max(len(row) for row in panels)
+    fig, axes = plt.subplots(
+        len(panels), ncols, figsize=(4.2 * ncols, 4.0 * len(panels)), constrained_layout=True, squeeze=False
+    )
     image = None
-    for ax, (horizontal, vertical, held) in zip(np.atleast_1d(axes), SLICES):
-        hs, vs, level, values = _slice(same, horizontal, vertical, held)
-        grid = np.full((len(vs), len(hs)), np.nan)
-        for (h, v), value in values.items():
-            grid[vs.index(v), hs.index(h)] = colour(value)
-        image = ax.imshow(grid, origin="lower", cmap=cmap, vmin=vmin, vmax=vmax, aspect="auto")
-        for (h, v), value in values.items():
-            ax.text(
-                hs.index(h),
-                vs.index(v),
-                label(value),
-                ha="center",
-                va="center",
-                fontsize=7,
-                bbox={"facecolor": "white", "alpha": 0.6, "linewidth": 0, "pad": 1},
-            )
-        ax.set_xticks(range(len(hs)), [f"{h:+.2g}" for h in hs])
-        ax.set_yticks(range(len(vs)), [f"{v:+.2g}" for v in vs])
-        ax.set_xlabel(f"{horizontal} (unit action)")
-        ax.set_ylabel(f"{vertical} (unit action)")
-        ax.set_title(f"{horizontal}–{vertical} at {held} = {level:+.2g}")
+    for r, row in enumerate(panels):
+        for c in range(len(row), ncols):
+            axes[r, c].set_axis_off()
+        for ax, (horizontal, vertical, held, level) in zip(axes[r], row):
+            hs, vs, values = _slice(same, horizontal, vertical, held, level)
+            grid = np.full((len(vs), len(hs)), np.nan)
+            for (h, v), value in values.items():
+                grid[vs.index(v), hs.index(h)] = colour(value)
+            image = ax.imshow(grid, origin="lower", cmap=cmap, vmin=vmin, vmax=vmax, aspect="auto")
+            for (h, v), value in values.items():
+                ax.text(
+                    hs.index(h),
+                    vs.index(v),
+                    label(value),
+                    ha="center",
+                    va="center",
+                    fontsize=6.5,
+                    bbox={"facecolor": "white", "alpha": 0.6, "linewidth": 0, "pad": 1},
+                )
+            ax.set_xticks(range(len(hs)), [f"{h:+.2g}" for h in hs])
+            ax.set_yticks(range(len(vs)), [f"{v:+.2g}" for v in vs])
+            ax.set_xlabel(f"{horizontal} (unit action)")
+            ax.set_ylabel(f"{vertical} (unit action)")
+            ax.set_title(f"{horizontal}–{vertical} at {held} = {level:+.2g}")
     if image is not None:
-        fig.colorbar(image, ax=axes, label=colour_label, shrink=0.9)
+        fig.colorbar(image, ax=axes, label=colour_label, shrink=0.6)
     fig.suptitle(title)
-    atomic_save(lambda tmp: fig.savefig(tmp, format="png", dpi=110), path, suffix=".png")
+    atomic_save(lambda tmp: fig.savefig(tmp, format="png", dpi=100), path, suffix=".png")
     plt.close(fig)
 
 
