@@ -142,8 +142,12 @@ def _link_frame(sim: Any, link: str) -> tuple[np.ndarray, np.ndarray]:
     body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, link)
     if body < 0:
         raise ValueError(f"the MuJoCo model has no body {link!r}")
-    mujoco.mj_kinematics(model, data)  # body frames of the current state (derived values only)
-    return data.xpos[body].copy(), data.xmat[body].reshape(3, 3).copy()
+    # body frames of the current state, computed in a scratch copy: the simulation's own derived
+    # values (which its control law may read) stay as its last step left them
+    scratch = mujoco.MjData(model)
+    scratch.qpos[:] = data.qpos
+    mujoco.mj_kinematics(model, scratch)
+    return scratch.xpos[body].copy(), scratch.xmat[body].reshape(3, 3).copy()
 
 
 @dataclass(frozen=True)
