@@ -45,7 +45,7 @@ from footsim.utils import atomic_save, atomic_write_text
 from footsim.walk.footsteps import DoubleStep, FeetState
 
 #: The task's default fall threshold [rad] (largest trunk roll or pitch of a step).
-FALL_THRESHOLD: float = NavTaskConfig.__dataclass_fields__["fall_threshold"].default
+FALL_THRESHOLD: float = NavTaskConfig().fall_threshold
 AXES = ("x", "y", "theta")
 #: Unit-action columns: the right foot's step (it flies first), then the left foot's.
 ACTION_COLUMNS = ("right_x", "right_y", "right_theta", "left_x", "left_y", "left_theta")
@@ -298,8 +298,20 @@ def read_map(path: str | Path) -> list[Cell]:
             raise ValueError(f"{path}: not a capability map, missing column(s) {missing}")
         cells = []
         for row in reader:
-            stats = {f.name: (int(row[f.name]) if f.name in _COUNTS else float(row[f.name])) for f in fields(Cell)[1:]}
-            cells.append(Cell(action=tuple(float(row[c]) for c in ACTION_COLUMNS), **stats))
+            cells.append(
+                Cell(
+                    action=tuple(float(row[c]) for c in ACTION_COLUMNS),
+                    n=int(row["n"]),
+                    falls=int(row["falls"]),
+                    sim_errors=int(row["sim_errors"]),
+                    warmup_failures=int(row["warmup_failures"]),
+                    landed=int(row["landed"]),
+                    position_error_mean=float(row["position_error_mean"]),
+                    position_error_max=float(row["position_error_max"]),
+                    yaw_error_mean=float(row["yaw_error_mean"]),
+                    yaw_error_max=float(row["yaw_error_max"]),
+                )
+            )
     return cells
 
 
@@ -387,12 +399,12 @@ def capability_map(
 
 
 # -- pictures -----------------------------------------------------------------------------------
-def _same_step(cells: Sequence[Cell]) -> dict[tuple[float, float, float], Cell]:
+def _same_step(cells: Sequence[Cell]) -> dict[tuple[float, ...], Cell]:
     """The cells where both feet take the same step, by that step's (x, y, theta)."""
     return {c.action[:3]: c for c in cells if c.action[:3] == c.action[3:]}
 
 
-def _slice(same: Mapping[tuple[float, float, float], Any], horizontal: str, vertical: str, held: str, level: float):
+def _slice(same: Mapping[tuple[float, ...], Any], horizontal: str, vertical: str, held: str, level: float):
     """``(horizontal levels, vertical levels, {(h, v): value})`` of the slice with ``held`` at ``level``."""
     index = {a: AXES.index(a) for a in AXES}
     keys = [k for k in same if k[index[held]] == level]
@@ -402,7 +414,7 @@ def _slice(same: Mapping[tuple[float, float, float], Any], horizontal: str, vert
     return hs, vs, values
 
 
-def slice_panels(keys: Sequence[tuple[float, float, float]]) -> list[list[tuple[str, str, str, float]]]:
+def slice_panels(keys: Sequence[tuple[float, ...]]) -> list[list[tuple[str, str, str, float]]]:
     """The heatmap panels ``(horizontal, vertical, held axis, held level)`` in rows: x–y at every
     theta level of the grid (together: every same-step cell), then x–theta at y and y–theta at x,
     each held at its level nearest 0."""
@@ -418,7 +430,7 @@ def slice_panels(keys: Sequence[tuple[float, float, float]]) -> list[list[tuple[
 
 
 def _draw_slices(
-    same: Mapping[tuple[float, float, float], Any],
+    same: Mapping[tuple[float, ...], Any],
     colour: Callable[[Any], float],
     label: Callable[[Any], str],
     title: str,
