@@ -155,6 +155,8 @@ def test_the_command_writes_the_map_and_prints_the_summary(tmp_path, capsys):
         (["backend=pymunk", "seed=x"], ["seed", "'x'"]),
         (["backend=pymunk", "grid=same:1"], ["grid", "'1'"]),
         (["backend=pymunk", "colour=red"], ["unknown key", "'colour'"]),
+        (["backend=pymunk", "walk=fastest"], ["walk preset", "'fastest'", "bitbots_sim"]),
+        (["backend=pymunk", "randomization=wild"], ["randomization preset", "'wild'", "default"]),
         ([], ["backend=NAME"]),
         (["compare=only_one"], ["compare", "two map directories", "'only_one'"]),
         (["compare=/nonexistent/a,/nonexistent/b"], ["no capability map", "/nonexistent/a"]),

@@ -10,6 +10,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from footsim import config as fconf
 from footsim.backends.base import require_known_backends
 from footsim.calibration import capability as cap
 from footsim.utils import parse_kv_args
@@ -51,11 +52,14 @@ def main(argv: list[str] | None = None) -> None:
         raise SystemExit(f"{COMMAND}: give backend=NAME (or compare=DIR_A,DIR_B)")
     require_known_backends([args["backend"]], COMMAND)
     repeats, seed, warmup = _whole(args, "repeats", 1), _whole(args, "seed", 0), _whole(args, "warmup", 0)
-    try:
+    walk = args["walk"] or None
+    try:  # every argument checked before the first trial
         cap.capability_grid(args["grid"])
+        if walk is not None:
+            fconf.load_preset("walk", walk)
+        fconf.load_preset("randomization", args["randomization"])
     except ValueError as err:
         raise SystemExit(f"{COMMAND}: {err}") from None
-    walk = args["walk"] or None
     out = Path(args["out"] or f"capability_{args['backend']}")
 
     def progress(done: int, total: int) -> None:
