@@ -1,0 +1,99 @@
+"""``footsim-capability backend=B [walk=W] [randomization=R] [grid=same:5] [repeats=2] [seed=0]
+[warmup=2] [out=DIR]``: the capability map of a backend (:mod:`footsim.calibration.capability`):
+``DIR/capability.csv`` and ``DIR/capability.png`` (default ``DIR`` = ``capability_<backend>``).
+
+``footsim-capability compare=DIR_A,DIR_B [out=FILE.png]``: where two maps disagree (default
+``FILE`` = ``capability_compare.png``)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from footsim import config as fconf
+from footsim.backends.base import require_known_backends
+from footsim.calibration import capability as cap
+from footsim.utils import parse_kv_args
+
+COMMAND = "footsim-capability"
+
+
+def _whole(args: dict, key: str, minimum: int) -> int:
+    text = str(args[key])
+    try:
+        value = int(text)
+    except ValueError:
+        value = None
+    if value is None or value < minimum:
+        raise SystemExit(f"{COMMAND}: {key} must be a whole number >= {minimum}, got {text!r}")
+    return value
+
+
+def main(argv: list[str] | None = None) -> None:
+    args = parse_kv_args(
+        sys.argv[1:] if argv is None else argv,
+        {
+            "backend": "",
+            "walk": "",
+            "randomization": "none",
+            "grid": cap.DEFAULT_GRID,
+            "repeats": "2",
+            "seed": "0",
+            "warmup": "2",
+            "out": "",
+            "compare": "",
+        },
+        COMMAND,
+    )
+    if args["compare"]:
+        _compare(args)
+        return
+    if not args["backend"]:
+        raise SystemExit(f"{COMMAND}: give backend=NAME (or compare=DIR_A,DIR_B)")
+    require_known_backends([args["backend"]], COMMAND)
+    repeats, seed, warmup = _whole(args, "repeats", 1), _whole(args, "seed", 0), _whole(args, "warmup", 0)
+    walk = args["walk"] or None
+    try:  # every argument checked before the first trial
+        cap.capability_grid(args["grid"])
+        if walk is not None:
+            fconf.load_preset("walk", walk)
+        fconf.load_preset("randomization", args["randomization"])
+    except ValueError as err:
+        raise SystemExit(f"{COMMAND}: {err}") from None
+    out = Path(args["out"] or f"capability_{args['backend']}")
+
+    def progress(done: int, total: int) -> None:
+        if done == total or done % 25 == 0:
+            print(f"{done}/{total} cells", flush=True)
+
+    cells, seconds = cap.timed_map(
+        args["backend"],
+        walk=walk,
+        randomization=args["randomization"],
+        grid=args["grid"],
+        repeats=repeats,
+        seed=seed,
+        warmup=warmup,
+        progress=progress,
+    )
+    title = f"{args['backend']}, walk={walk or 'backend default'}, randomization={args['randomization']}"
+    csv_path, png_path = cap.write_map(cells, out, title)
+    print(f"{title}: {len(cells)} cells x {repeats} repeats in {seconds:.0f} s")
+    print(cap.summary_text(cells))
+    print(f"wrote {csv_path} and {png_path}")
+
+
+def _compare(args: dict) -> None:
+    if args["backend"]:
+        raise SystemExit(f"{COMMAND}: compare= takes two map directories, not backend=")
+    dirs = [d for d in args["compare"].split(",") if d]
+    if len(dirs) != 2:
+        raise SystemExit(f"{COMMAND}: compare needs two map directories DIR_A,DIR_B, got {args['compare']!r}")
+    try:
+        maps = [cap.read_map(d) for d in dirs]
+        out = args["out"] or "capability_compare.png"
+        line = cap.compare_maps(maps[0], maps[1], out, names=(Path(dirs[0]).name, Path(dirs[1]).name))
+    except (FileNotFoundError, ValueError) as err:
+        raise SystemExit(f"{COMMAND}: {err}") from None
+    print(line)
+    print(f"wrote {out}")
