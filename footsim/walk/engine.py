@@ -54,7 +54,7 @@ from footsim.walk import kernels
 from footsim.walk.footsteps import DoubleStep, FeetState, Footstep, FootstepGeometry, Side
 from footsim.walk.ik import LEG_JOINT_NAMES, LegGeometry, legs_ik
 from footsim.walk.params import WalkParams
-from footsim.walk.spline import PiecewiseQuintic, knots_state, sample_positions
+from footsim.walk.spline import knots_state, sample_positions
 
 __all__ = ["LEG_JOINT_NAMES", "QuinticWalk", "WalkState", "WalkTrajectory"]
 
@@ -82,6 +82,9 @@ _TRUNK_CHANNELS = np.array([X, Y, Z, PITCH, YAW])
 # and the largest outward detour [m] the flying foot may take around it.
 _SWEEP_SAMPLES = np.linspace(0.0, 1.0, 25)[1:-1]
 _MAX_DETOUR = 0.1
+# The trunk's hand-over state: (position, velocity, acceleration) of each of the six channels, in
+# Python floats (the handful of operations per half step cost less on floats than on numpy arrays).
+TrunkState = list[tuple[float, float, float]]
 
 
 @dataclass(frozen=True)
@@ -165,20 +168,23 @@ class _HalfStep:
     phase_span: float  # phase advanced over `duration`
 
 
-def _transform_trunk_state(state: np.ndarray, frame: Pose2D) -> np.ndarray:
-    """Re-express a trunk (6, 3) pos/vel/acc state in ``frame`` (a planar pose in the old frame).
+def _transform_trunk_state(state: TrunkState, frame: Pose2D) -> TrunkState:
+    """Re-express a trunk pos/vel/acc state (six channels) in ``frame`` (a planar pose in the old frame).
 
     The frames are fixed relative to each other, so velocities and accelerations just rotate;
     rpy under a rotation about z only changes yaw (Rz(−θ)·Rz(y)Ry(p)Rx(r) = Rz(y−θ)Ry(p)Rx(r)).
     """
     c, s = math.cos(frame.theta), math.sin(frame.theta)
-    (x, vx, ax), (y, vy, ay) = state[X].tolist(), state[Y].tolist()  # six floats: cheaper than numpy
+    (x, vx, ax), (y, vy, ay), z, roll, pitch, (yaw, v_yaw, a_yaw) = state
     x, y = x - frame.x, y - frame.y
-    out = state.copy()
-    out[X] = (c * x + s * y, c * vx + s * vy, c * ax + s * ay)
-    out[Y] = (-s * x + c * y, -s * vx + c * vy, -s * ax + c * ay)
-    out[YAW, 0] = state[YAW, 0] - frame.theta
-    return out
+    return [
+        (c * x + s * y, c * vx + s * vy, c * ax + s * ay),
+        (-s * x + c * y, -s * vx + c * vy, -s * ax + c * ay),
+        z,
+        roll,
+        pitch,
+        (yaw - frame.theta, v_yaw, a_yaw),
+    ]
 
 
 def _overlap_bands(x: np.ndarray, theta: np.ndarray, half_l: float, half_w: float) -> tuple[np.ndarray, np.ndarray]:
@@ -288,7 +294,7 @@ class QuinticWalk:
         self._feet = self.geometry.initial_feet(pose)
         # The trunk state is always kept in the frame of the next half step's support foot; the
         # next half step from IDLE is the start movement, in right support.
-        self._trunk = self._standing_trunk_state(Side.RIGHT)
+        self._trunk: TrunkState = [tuple(row) for row in self._standing_trunk_state(Side.RIGHT).tolist()]
 
     @property
     def state(self) -> WalkState:
@@ -493,8 +499,8 @@ class QuinticWalk:
         time_shift = -0.5 * half + 0.5 * p.double_support_ratio * half + trunk_phase * half
         return half + time_shift
 
-    def _trunk_knots(self, plan: _HalfStep, state: np.ndarray, next_plan: _HalfStep | None, foot_yaw: list) -> list:
-        """Knots of the trunk's x, y, z, pitch and yaw channels (support frame), from ``state`` (6, 3).
+    def _trunk_knots(self, plan: _HalfStep, state: TrunkState, next_plan: _HalfStep | None, foot_yaw: list) -> list:
+        """Knots of the trunk's x, y, z, pitch and yaw channels (support frame), from ``state``.
 
         The trunk yaw is the mean of the two feet's yaws at every instant: half the flying
         foot's yaw spline (the support foot has yaw 0 in its own frame).  Both feet are at rest
@@ -504,13 +510,13 @@ class QuinticWalk:
         channels.append([(knot[0], 0.5 * knot[1]) for knot in foot_yaw])
         return channels
 
-    def _trunk_translation_pitch_knots(self, plan: _HalfStep, state: np.ndarray, next_plan: _HalfStep | None) -> list:
+    def _trunk_translation_pitch_knots(self, plan: _HalfStep, state: TrunkState, next_plan: _HalfStep | None) -> list:
         """Knots of the trunk's x, y, z and pitch channels, of Python floats (numpy scalars would
         double the cost of the spline's knot table)."""
         p = self.params
         half = self.half_period
         min_gap = 0.02 * half  # knots closer than this to t = 0 would make needlessly stiff segments
-        start = [(0.0, position, velocity, acceleration) for position, velocity, acceleration in state.tolist()]
+        start = [(0.0, position, velocity, acceleration) for position, velocity, acceleration in state]
         t1 = self._apex_time(plan.kind)
 
         if plan.kind == WalkState.STOP_MOVEMENT:
@@ -524,9 +530,7 @@ class QuinticWalk:
             at_support, _ = self._trunk_apexes(
                 next_plan.last, next_plan.landing, p.trunk_swing * p.first_step_swing_factor
             )
-            target = np.zeros((6, 3))
-            target[:, :2] = at_support
-            target = _transform_trunk_state(target, plan.landing.inverse()).tolist()
+            target = _transform_trunk_state([(p, v, 0.0) for p, v in at_support], plan.landing.inverse())
             t_target = plan.duration + t1 if plan.duration + t1 > min_gap else plan.duration + t1 + half
             return [[start[c], (t_target, target[c][0], target[c][1])] for c in (X, Y, Z, PITCH)]
 
@@ -648,10 +652,10 @@ class QuinticWalk:
         blocked = ~np.isnan(edge)
         if not blocked.any():
             return y_knots
-        times = start + u * (end - start)
+        times = (start + u * (end - start))[None, :]  # one channel's sample times
 
         def deficit(knots) -> float:
-            ys = PiecewiseQuintic([knots]).positions(times[None, :])[0]
+            ys = sample_positions([knots], times)[0]
             return float(np.max(sign * (edge[blocked] - ys[blocked]), initial=0.0))
 
         if deficit(y_knots) <= 0.0:
@@ -683,9 +687,8 @@ class QuinticWalk:
             foot = self._foot_knots(plan)
             trunk = self._trunk_knots(plan, trunk_state, next_plan, foot[-1])
             channels += foot + trunk
-            end_state = np.zeros((6, 3))
-            for c, knots in zip(_TRUNK_CHANNELS, trunk):
-                end_state[c] = knots_state(knots, plan.duration)
+            x, y, z, pitch, yaw = (knots_state(knots, plan.duration) for knots in trunk)  # _TRUNK_CHANNELS
+            end_state = [x, y, z, (0.0, 0.0, 0.0), pitch, yaw]
             # ... expressed in the next support frame (the flying foot's landing pose).
             trunk_state = _transform_trunk_state(end_state, plan.landing)
         per_plan = len(_FOOT_CHANNELS) + len(_TRUNK_CHANNELS)
