@@ -168,6 +168,37 @@ class _HalfStep:
     phase_span: float  # phase advanced over `duration`
 
 
+@dataclass(frozen=True)
+class _CallLayout:
+    """The tick tables shared by every engine call with the same sequence of half-step kinds (the
+    kinds decide each half step's tick times and phases): built once per engine and sequence."""
+
+    sample_times: np.ndarray  # (half steps × channels per half step, most ticks) each channel's tick times, padded
+    spans: tuple[tuple[int, int], ...]  # each half step's ticks [begin, end) within the call
+    ticks: np.ndarray  # (n,) 1 … n
+    phase: np.ndarray  # (n,) walk phase in [0, 1)
+    state: np.ndarray  # (n,) WalkState (int8)
+
+    @classmethod
+    def of(cls, plans: list[_HalfStep]) -> _CallLayout:
+        counts = [len(plan.tick_times) for plan in plans]
+        width = max(counts)
+        times = np.empty((len(plans), width))
+        for i, plan in enumerate(plans):
+            times[i, : counts[i]] = plan.tick_times
+            times[i, counts[i] :] = plan.duration  # padding, discarded
+        ends = np.cumsum(counts).tolist()
+        spans = tuple(zip([0] + ends[:-1], ends))
+        phase = np.concatenate([plan.phase_start + plan.phase_span / plan.duration * plan.tick_times for plan in plans])
+        phase[phase >= 1.0] -= 1.0
+        state = np.concatenate([np.full(n, int(plan.kind), dtype=np.int8) for plan, n in zip(plans, counts)])
+        per_plan = len(_FOOT_CHANNELS) + len(_TRUNK_CHANNELS)
+        tables = (np.repeat(times, per_plan, axis=0), np.arange(1, ends[-1] + 1), phase, state)
+        for table in tables:
+            table.setflags(write=False)  # shared by every call of this layout
+        return cls(tables[0], spans, *tables[1:])
+
+
 def _transform_trunk_state(state: TrunkState, frame: Pose2D) -> TrunkState:
     """Re-express a trunk pos/vel/acc state (six channels) in ``frame`` (a planar pose in the old frame).
 
@@ -276,6 +307,7 @@ class QuinticWalk:
         self._half_tick_times = (times[first], times[~first] - self.half_period)
         for local in self._half_tick_times:
             local.setflags(write=False)  # shared by every half step's plan
+        self._layouts: dict[tuple[WalkState, ...], _CallLayout] = {}
         if joint_limits is None:
             self._limits = None
         else:
@@ -691,56 +723,45 @@ class QuinticWalk:
             end_state = [x, y, z, (0.0, 0.0, 0.0), pitch, yaw]
             # ... expressed in the next support frame (the flying foot's landing pose).
             trunk_state = _transform_trunk_state(end_state, plan.landing)
-        per_plan = len(_FOOT_CHANNELS) + len(_TRUNK_CHANNELS)
-        width = max(len(plan.tick_times) for plan in plans)
-        times = np.empty((len(plans), width))
-        for i, plan in enumerate(plans):
-            n = len(plan.tick_times)
-            times[i, :n] = plan.tick_times
-            times[i, n:] = plan.duration  # padding, discarded
-        sampled = sample_positions(channels, np.repeat(times, per_plan, axis=0))
-        n_foot = len(_FOOT_CHANNELS)
+        kinds = tuple(plan.kind for plan in plans)
+        layout = self._layouts.get(kinds)
+        if layout is None:
+            layout = self._layouts[kinds] = _CallLayout.of(plans)
+        sampled = sample_positions(channels, layout.sample_times)
+        per_plan, n_foot = len(_FOOT_CHANNELS) + len(_TRUNK_CHANNELS), len(_FOOT_CHANNELS)
         parts = []
         for i, plan in enumerate(plans):
-            n = len(plan.tick_times)
-            rows = sampled[i * per_plan : (i + 1) * per_plan, :n]
+            rows = sampled[i * per_plan : (i + 1) * per_plan, : len(plan.tick_times)]
             parts.append((plan, rows[:n_foot], rows[n_foot:]))
         self._trunk = trunk_state
         self._feet = feet_after
-        self._tick += sum(len(plan.tick_times) for plan in plans)
-        return self._assemble(parts, executed, feet_after, interfered)
+        self._tick += len(layout.ticks)
+        return self._assemble(layout, parts, executed, feet_after, interfered)
 
     def _leg_joints(self, trunk: np.ndarray, left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """IK for both legs in one compiled call.  ``trunk``, ``left``, ``right``: (6, n) poses in a common frame."""
         return legs_ik(trunk, left, right, self.leg, self._limits)
 
-    def _assemble(self, parts, executed, feet_after: FeetState, interfered: int) -> WalkTrajectory:
+    def _assemble(self, layout: _CallLayout, parts, executed, feet_after: FeetState, interfered: int) -> WalkTrajectory:
         dt = self.control_dt
-        n_total = sum(foot.shape[1] for _, foot, _ in parts)
+        n_total = len(layout.ticks)
         # Local (support-frame) poses, stacked: 0 = left sole, 1 = right sole, 2 = trunk; the
         # support sole is the zero pose of its own frame.
         local = np.zeros((3, 6, n_total))
         support_pose = np.empty((3, n_total))
-        phase = np.empty(n_total)
-        state = np.empty(n_total, dtype=np.int8)
-        begin = 0
-        for plan, foot, trunk_part in parts:
-            end = begin + foot.shape[1]
+        for (begin, end), (plan, foot, trunk_part) in zip(layout.spans, parts):
             local[0 if plan.support is Side.RIGHT else 1, _FOOT_CHANNELS, begin:end] = foot
             local[2, _TRUNK_CHANNELS, begin:end] = trunk_part
             support_pose[:, begin:end] = np.array(plan.support_pose)[:, None]
-            phase[begin:end] = plan.phase_start + plan.phase_span / plan.duration * plan.tick_times
-            state[begin:end] = int(plan.kind)
-            begin = end
-        phase[phase >= 1.0] -= 1.0
         joints, reachable = self._leg_joints(local[2], local[0], local[1])
-        t = (self._tick - n_total + np.arange(1, n_total + 1)) * dt
+        t = (self._tick - n_total + layout.ticks) * dt
+        phase = layout.phase.copy()
         return WalkTrajectory(
             dt=dt,
             t=t,
             phase=phase,
             support=phase < 0.5,
-            state=state,
+            state=layout.state.copy(),
             joint_targets=joints,
             reachable=reachable,
             executed=executed,
