@@ -170,11 +170,20 @@ class _HalfStep:
 
 @dataclass(frozen=True)
 class _CallLayout:
-    """The tick tables shared by every engine call with the same sequence of half-step kinds (the
-    kinds decide each half step's tick times and phases): built once per engine and sequence."""
+    """The tick tables shared by every engine call with the same sequence of half steps (kind and
+    support side; they decide each half step's tick times and phases): built once per engine and
+    sequence.
 
-    sample_times: np.ndarray  # (half steps × channels per half step, most ticks) each channel's tick times, padded
-    spans: tuple[tuple[int, int], ...]  # each half step's ticks [begin, end) within the call
+    The splines of a call are sampled as one table, ``channels per half step`` rows per half step
+    (the flying foot's, then the trunk's channels), each row at its half step's tick times padded
+    to the longest half step; ``sampled`` and ``local`` map it (flat indices) to the call's
+    support-frame poses ``(3, 6, n)`` (left sole, right sole, trunk).
+    """
+
+    sample_times: np.ndarray  # (half steps × channels per half step, most ticks)
+    sampled: np.ndarray  # flat indices into the sampled table of every pose entry that moves ...
+    local: np.ndarray  # ... and where each goes in the flat (3, 6, n) local poses
+    half_step: np.ndarray  # (n,) index of the half step each tick belongs to
     ticks: np.ndarray  # (n,) 1 … n
     phase: np.ndarray  # (n,) walk phase in [0, 1)
     state: np.ndarray  # (n,) WalkState (int8)
@@ -182,21 +191,34 @@ class _CallLayout:
     @classmethod
     def of(cls, plans: list[_HalfStep]) -> _CallLayout:
         counts = [len(plan.tick_times) for plan in plans]
-        width = max(counts)
+        n, width = sum(counts), max(counts)
         times = np.empty((len(plans), width))
         for i, plan in enumerate(plans):
             times[i, : counts[i]] = plan.tick_times
-            times[i, counts[i] :] = plan.duration  # padding, discarded
-        ends = np.cumsum(counts).tolist()
-        spans = tuple(zip([0] + ends[:-1], ends))
+            times[i, counts[i] :] = plan.duration  # padding, never copied out
+        sampled, local = [], []
+        begin = 0
+        for i, (plan, count) in enumerate(zip(plans, counts)):
+            flying = 0 if plan.support is Side.RIGHT else 1
+            poses = [(flying, c) for c in _FOOT_CHANNELS] + [(2, c) for c in _TRUNK_CHANNELS]
+            for row, (pose, channel) in enumerate(poses, start=i * len(poses)):
+                sampled.append(row * width + np.arange(count))
+                local.append((pose * 6 + channel) * n + begin + np.arange(count))
+            begin += count
         phase = np.concatenate([plan.phase_start + plan.phase_span / plan.duration * plan.tick_times for plan in plans])
         phase[phase >= 1.0] -= 1.0
-        state = np.concatenate([np.full(n, int(plan.kind), dtype=np.int8) for plan, n in zip(plans, counts)])
-        per_plan = len(_FOOT_CHANNELS) + len(_TRUNK_CHANNELS)
-        tables = (np.repeat(times, per_plan, axis=0), np.arange(1, ends[-1] + 1), phase, state)
+        tables = (
+            np.repeat(times, len(_FOOT_CHANNELS) + len(_TRUNK_CHANNELS), axis=0),
+            np.concatenate(sampled),
+            np.concatenate(local),
+            np.repeat(np.arange(len(plans)), counts),
+            np.arange(1, n + 1),
+            phase,
+            np.repeat(np.array([int(plan.kind) for plan in plans], dtype=np.int8), counts),
+        )
         for table in tables:
             table.setflags(write=False)  # shared by every call of this layout
-        return cls(tables[0], spans, *tables[1:])
+        return cls(*tables)
 
 
 def _transform_trunk_state(state: TrunkState, frame: Pose2D) -> TrunkState:
@@ -307,7 +329,7 @@ class QuinticWalk:
         self._half_tick_times = (times[first], times[~first] - self.half_period)
         for local in self._half_tick_times:
             local.setflags(write=False)  # shared by every half step's plan
-        self._layouts: dict[tuple[WalkState, ...], _CallLayout] = {}
+        self._layouts: dict[tuple[tuple[WalkState, Side], ...], _CallLayout] = {}
         if joint_limits is None:
             self._limits = None
         else:
@@ -723,36 +745,36 @@ class QuinticWalk:
             end_state = [x, y, z, (0.0, 0.0, 0.0), pitch, yaw]
             # ... expressed in the next support frame (the flying foot's landing pose).
             trunk_state = _transform_trunk_state(end_state, plan.landing)
-        kinds = tuple(plan.kind for plan in plans)
-        layout = self._layouts.get(kinds)
+        key = tuple((plan.kind, plan.support) for plan in plans)
+        layout = self._layouts.get(key)
         if layout is None:
-            layout = self._layouts[kinds] = _CallLayout.of(plans)
+            layout = self._layouts[key] = _CallLayout.of(plans)
         sampled = sample_positions(channels, layout.sample_times)
-        per_plan, n_foot = len(_FOOT_CHANNELS) + len(_TRUNK_CHANNELS), len(_FOOT_CHANNELS)
-        parts = []
-        for i, plan in enumerate(plans):
-            rows = sampled[i * per_plan : (i + 1) * per_plan, : len(plan.tick_times)]
-            parts.append((plan, rows[:n_foot], rows[n_foot:]))
         self._trunk = trunk_state
         self._feet = feet_after
         self._tick += len(layout.ticks)
-        return self._assemble(layout, parts, executed, feet_after, interfered)
+        return self._assemble(layout, plans, sampled, executed, feet_after, interfered)
 
     def _leg_joints(self, trunk: np.ndarray, left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """IK for both legs in one compiled call.  ``trunk``, ``left``, ``right``: (6, n) poses in a common frame."""
         return legs_ik(trunk, left, right, self.leg, self._limits)
 
-    def _assemble(self, layout: _CallLayout, parts, executed, feet_after: FeetState, interfered: int) -> WalkTrajectory:
+    def _assemble(
+        self,
+        layout: _CallLayout,
+        plans: list[_HalfStep],
+        sampled: np.ndarray,
+        executed,
+        feet_after: FeetState,
+        interfered: int,
+    ) -> WalkTrajectory:
         dt = self.control_dt
         n_total = len(layout.ticks)
         # Local (support-frame) poses, stacked: 0 = left sole, 1 = right sole, 2 = trunk; the
-        # support sole is the zero pose of its own frame.
+        # support sole is the zero pose of its own frame, the roll channels stay zero.
         local = np.zeros((3, 6, n_total))
-        support_pose = np.empty((3, n_total))
-        for (begin, end), (plan, foot, trunk_part) in zip(layout.spans, parts):
-            local[0 if plan.support is Side.RIGHT else 1, _FOOT_CHANNELS, begin:end] = foot
-            local[2, _TRUNK_CHANNELS, begin:end] = trunk_part
-            support_pose[:, begin:end] = np.array(plan.support_pose)[:, None]
+        local.put(layout.local, sampled.take(layout.sampled))
+        support_pose = np.array([plan.support_pose for plan in plans]).T[:, layout.half_step]
         joints, reachable = self._leg_joints(local[2], local[0], local[1])
         t = (self._tick - n_total + layout.ticks) * dt
         phase = layout.phase.copy()
