@@ -54,7 +54,7 @@ from footsim.walk import kernels
 from footsim.walk.footsteps import DoubleStep, FeetState, Footstep, FootstepGeometry, Side
 from footsim.walk.ik import LEG_JOINT_NAMES, LegGeometry, legs_ik
 from footsim.walk.params import WalkParams
-from footsim.walk.spline import PiecewiseQuintic, knots_state, sample_positions
+from footsim.walk.spline import knots_state, sample_positions
 
 __all__ = ["LEG_JOINT_NAMES", "QuinticWalk", "WalkState", "WalkTrajectory"]
 
@@ -82,6 +82,9 @@ _TRUNK_CHANNELS = np.array([X, Y, Z, PITCH, YAW])
 # and the largest outward detour [m] the flying foot may take around it.
 _SWEEP_SAMPLES = np.linspace(0.0, 1.0, 25)[1:-1]
 _MAX_DETOUR = 0.1
+# The trunk's hand-over state: (position, velocity, acceleration) of each of the six channels, in
+# Python floats (the handful of operations per half step cost less on floats than on numpy arrays).
+TrunkState = list[tuple[float, float, float]]
 
 
 @dataclass(frozen=True)
@@ -165,20 +168,76 @@ class _HalfStep:
     phase_span: float  # phase advanced over `duration`
 
 
-def _transform_trunk_state(state: np.ndarray, frame: Pose2D) -> np.ndarray:
-    """Re-express a trunk (6, 3) pos/vel/acc state in ``frame`` (a planar pose in the old frame).
+@dataclass(frozen=True)
+class _CallLayout:
+    """The tick tables shared by every engine call with the same sequence of half steps (kind and
+    support side; they decide each half step's tick times and phases): built once per engine and
+    sequence.
+
+    The splines of a call are sampled as one table, ``channels per half step`` rows per half step
+    (the flying foot's, then the trunk's channels), each row at its half step's tick times padded
+    to the longest half step; ``sampled`` and ``local`` map it (flat indices) to the call's
+    support-frame poses ``(3, 6, n)`` (left sole, right sole, trunk).
+    """
+
+    sample_times: np.ndarray  # (half steps × channels per half step, most ticks)
+    sampled: np.ndarray  # flat indices into the sampled table of every pose entry that moves ...
+    local: np.ndarray  # ... and where each goes in the flat (3, 6, n) local poses
+    half_step: np.ndarray  # (n,) index of the half step each tick belongs to
+    ticks: np.ndarray  # (n,) 1 … n
+    phase: np.ndarray  # (n,) walk phase in [0, 1)
+    state: np.ndarray  # (n,) WalkState (int8)
+
+    @classmethod
+    def of(cls, plans: list[_HalfStep]) -> _CallLayout:
+        counts = [len(plan.tick_times) for plan in plans]
+        n, width = sum(counts), max(counts)
+        times = np.empty((len(plans), width))
+        for i, plan in enumerate(plans):
+            times[i, : counts[i]] = plan.tick_times
+            times[i, counts[i] :] = plan.duration  # padding, never copied out
+        sampled, local = [], []
+        begin = 0
+        for i, (plan, count) in enumerate(zip(plans, counts)):
+            flying = 0 if plan.support is Side.RIGHT else 1
+            poses = [(flying, c) for c in _FOOT_CHANNELS] + [(2, c) for c in _TRUNK_CHANNELS]
+            for row, (pose, channel) in enumerate(poses, start=i * len(poses)):
+                sampled.append(row * width + np.arange(count))
+                local.append((pose * 6 + channel) * n + begin + np.arange(count))
+            begin += count
+        phase = np.concatenate([plan.phase_start + plan.phase_span / plan.duration * plan.tick_times for plan in plans])
+        phase[phase >= 1.0] -= 1.0
+        tables = (
+            np.repeat(times, len(_FOOT_CHANNELS) + len(_TRUNK_CHANNELS), axis=0),
+            np.concatenate(sampled),
+            np.concatenate(local),
+            np.repeat(np.arange(len(plans)), counts),
+            np.arange(1, n + 1),
+            phase,
+            np.repeat(np.array([int(plan.kind) for plan in plans], dtype=np.int8), counts),
+        )
+        for table in tables:
+            table.setflags(write=False)  # shared by every call of this layout
+        return cls(*tables)
+
+
+def _transform_trunk_state(state: TrunkState, frame: Pose2D) -> TrunkState:
+    """Re-express a trunk pos/vel/acc state (six channels) in ``frame`` (a planar pose in the old frame).
 
     The frames are fixed relative to each other, so velocities and accelerations just rotate;
     rpy under a rotation about z only changes yaw (Rz(−θ)·Rz(y)Ry(p)Rx(r) = Rz(y−θ)Ry(p)Rx(r)).
     """
     c, s = math.cos(frame.theta), math.sin(frame.theta)
-    (x, vx, ax), (y, vy, ay) = state[X].tolist(), state[Y].tolist()  # six floats: cheaper than numpy
+    (x, vx, ax), (y, vy, ay), z, roll, pitch, (yaw, v_yaw, a_yaw) = state
     x, y = x - frame.x, y - frame.y
-    out = state.copy()
-    out[X] = (c * x + s * y, c * vx + s * vy, c * ax + s * ay)
-    out[Y] = (-s * x + c * y, -s * vx + c * vy, -s * ax + c * ay)
-    out[YAW, 0] = state[YAW, 0] - frame.theta
-    return out
+    return [
+        (c * x + s * y, c * vx + s * vy, c * ax + s * ay),
+        (-s * x + c * y, -s * vx + c * vy, -s * ax + c * ay),
+        z,
+        roll,
+        pitch,
+        (yaw - frame.theta, v_yaw, a_yaw),
+    ]
 
 
 def _overlap_bands(x: np.ndarray, theta: np.ndarray, half_l: float, half_w: float) -> tuple[np.ndarray, np.ndarray]:
@@ -270,6 +329,7 @@ class QuinticWalk:
         self._half_tick_times = (times[first], times[~first] - self.half_period)
         for local in self._half_tick_times:
             local.setflags(write=False)  # shared by every half step's plan
+        self._layouts: dict[tuple[tuple[WalkState, Side], ...], _CallLayout] = {}
         if joint_limits is None:
             self._limits = None
         else:
@@ -288,7 +348,7 @@ class QuinticWalk:
         self._feet = self.geometry.initial_feet(pose)
         # The trunk state is always kept in the frame of the next half step's support foot; the
         # next half step from IDLE is the start movement, in right support.
-        self._trunk = self._standing_trunk_state(Side.RIGHT)
+        self._trunk: TrunkState = [tuple(row) for row in self._standing_trunk_state(Side.RIGHT).tolist()]
 
     @property
     def state(self) -> WalkState:
@@ -493,8 +553,8 @@ class QuinticWalk:
         time_shift = -0.5 * half + 0.5 * p.double_support_ratio * half + trunk_phase * half
         return half + time_shift
 
-    def _trunk_knots(self, plan: _HalfStep, state: np.ndarray, next_plan: _HalfStep | None, foot_yaw: list) -> list:
-        """Knots of the trunk's x, y, z, pitch and yaw channels (support frame), from ``state`` (6, 3).
+    def _trunk_knots(self, plan: _HalfStep, state: TrunkState, next_plan: _HalfStep | None, foot_yaw: list) -> list:
+        """Knots of the trunk's x, y, z, pitch and yaw channels (support frame), from ``state``.
 
         The trunk yaw is the mean of the two feet's yaws at every instant: half the flying
         foot's yaw spline (the support foot has yaw 0 in its own frame).  Both feet are at rest
@@ -504,13 +564,13 @@ class QuinticWalk:
         channels.append([(knot[0], 0.5 * knot[1]) for knot in foot_yaw])
         return channels
 
-    def _trunk_translation_pitch_knots(self, plan: _HalfStep, state: np.ndarray, next_plan: _HalfStep | None) -> list:
+    def _trunk_translation_pitch_knots(self, plan: _HalfStep, state: TrunkState, next_plan: _HalfStep | None) -> list:
         """Knots of the trunk's x, y, z and pitch channels, of Python floats (numpy scalars would
         double the cost of the spline's knot table)."""
         p = self.params
         half = self.half_period
         min_gap = 0.02 * half  # knots closer than this to t = 0 would make needlessly stiff segments
-        start = [(0.0, position, velocity, acceleration) for position, velocity, acceleration in state.tolist()]
+        start = [(0.0, position, velocity, acceleration) for position, velocity, acceleration in state]
         t1 = self._apex_time(plan.kind)
 
         if plan.kind == WalkState.STOP_MOVEMENT:
@@ -524,9 +584,7 @@ class QuinticWalk:
             at_support, _ = self._trunk_apexes(
                 next_plan.last, next_plan.landing, p.trunk_swing * p.first_step_swing_factor
             )
-            target = np.zeros((6, 3))
-            target[:, :2] = at_support
-            target = _transform_trunk_state(target, plan.landing.inverse()).tolist()
+            target = _transform_trunk_state([(p, v, 0.0) for p, v in at_support], plan.landing.inverse())
             t_target = plan.duration + t1 if plan.duration + t1 > min_gap else plan.duration + t1 + half
             return [[start[c], (t_target, target[c][0], target[c][1])] for c in (X, Y, Z, PITCH)]
 
@@ -648,10 +706,10 @@ class QuinticWalk:
         blocked = ~np.isnan(edge)
         if not blocked.any():
             return y_knots
-        times = start + u * (end - start)
+        times = (start + u * (end - start))[None, :]  # one channel's sample times
 
         def deficit(knots) -> float:
-            ys = PiecewiseQuintic([knots]).positions(times[None, :])[0]
+            ys = sample_positions([knots], times)[0]
             return float(np.max(sign * (edge[blocked] - ys[blocked]), initial=0.0))
 
         if deficit(y_knots) <= 0.0:
@@ -683,61 +741,49 @@ class QuinticWalk:
             foot = self._foot_knots(plan)
             trunk = self._trunk_knots(plan, trunk_state, next_plan, foot[-1])
             channels += foot + trunk
-            end_state = np.zeros((6, 3))
-            for c, knots in zip(_TRUNK_CHANNELS, trunk):
-                end_state[c] = knots_state(knots, plan.duration)
+            x, y, z, pitch, yaw = (knots_state(knots, plan.duration) for knots in trunk)  # _TRUNK_CHANNELS
+            end_state = [x, y, z, (0.0, 0.0, 0.0), pitch, yaw]
             # ... expressed in the next support frame (the flying foot's landing pose).
             trunk_state = _transform_trunk_state(end_state, plan.landing)
-        per_plan = len(_FOOT_CHANNELS) + len(_TRUNK_CHANNELS)
-        width = max(len(plan.tick_times) for plan in plans)
-        times = np.empty((len(plans), width))
-        for i, plan in enumerate(plans):
-            n = len(plan.tick_times)
-            times[i, :n] = plan.tick_times
-            times[i, n:] = plan.duration  # padding, discarded
-        sampled = sample_positions(channels, np.repeat(times, per_plan, axis=0))
-        n_foot = len(_FOOT_CHANNELS)
-        parts = []
-        for i, plan in enumerate(plans):
-            n = len(plan.tick_times)
-            rows = sampled[i * per_plan : (i + 1) * per_plan, :n]
-            parts.append((plan, rows[:n_foot], rows[n_foot:]))
+        key = tuple((plan.kind, plan.support) for plan in plans)
+        layout = self._layouts.get(key)
+        if layout is None:
+            layout = self._layouts[key] = _CallLayout.of(plans)
+        sampled = sample_positions(channels, layout.sample_times)
         self._trunk = trunk_state
         self._feet = feet_after
-        self._tick += sum(len(plan.tick_times) for plan in plans)
-        return self._assemble(parts, executed, feet_after, interfered)
+        self._tick += len(layout.ticks)
+        return self._assemble(layout, plans, sampled, executed, feet_after, interfered)
 
     def _leg_joints(self, trunk: np.ndarray, left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """IK for both legs in one compiled call.  ``trunk``, ``left``, ``right``: (6, n) poses in a common frame."""
         return legs_ik(trunk, left, right, self.leg, self._limits)
 
-    def _assemble(self, parts, executed, feet_after: FeetState, interfered: int) -> WalkTrajectory:
+    def _assemble(
+        self,
+        layout: _CallLayout,
+        plans: list[_HalfStep],
+        sampled: np.ndarray,
+        executed,
+        feet_after: FeetState,
+        interfered: int,
+    ) -> WalkTrajectory:
         dt = self.control_dt
-        n_total = sum(foot.shape[1] for _, foot, _ in parts)
+        n_total = len(layout.ticks)
         # Local (support-frame) poses, stacked: 0 = left sole, 1 = right sole, 2 = trunk; the
-        # support sole is the zero pose of its own frame.
+        # support sole is the zero pose of its own frame, the roll channels stay zero.
         local = np.zeros((3, 6, n_total))
-        support_pose = np.empty((3, n_total))
-        phase = np.empty(n_total)
-        state = np.empty(n_total, dtype=np.int8)
-        begin = 0
-        for plan, foot, trunk_part in parts:
-            end = begin + foot.shape[1]
-            local[0 if plan.support is Side.RIGHT else 1, _FOOT_CHANNELS, begin:end] = foot
-            local[2, _TRUNK_CHANNELS, begin:end] = trunk_part
-            support_pose[:, begin:end] = np.array(plan.support_pose)[:, None]
-            phase[begin:end] = plan.phase_start + plan.phase_span / plan.duration * plan.tick_times
-            state[begin:end] = int(plan.kind)
-            begin = end
-        phase[phase >= 1.0] -= 1.0
+        local.put(layout.local, sampled.take(layout.sampled))
+        support_pose = np.array([plan.support_pose for plan in plans]).T[:, layout.half_step]
         joints, reachable = self._leg_joints(local[2], local[0], local[1])
-        t = (self._tick - n_total + np.arange(1, n_total + 1)) * dt
+        t = (self._tick - n_total + layout.ticks) * dt
+        phase = layout.phase.copy()
         return WalkTrajectory(
             dt=dt,
             t=t,
             phase=phase,
             support=phase < 0.5,
-            state=state,
+            state=layout.state.copy(),
             joint_targets=joints,
             reachable=reachable,
             executed=executed,
