@@ -213,7 +213,8 @@ class DmControlSim(MujocoEngineSim):
         physics.forward()
 
     def _apply_model_options(self, model, robot: RobotSpec) -> None:
-        """The MuJoCo backend's model options, as edits of the mjcf tree (see conf/backend/dm_control.yaml)."""
+        """The MuJoCo backend's model options (``apply_model_options`` on its MjSpec) as edits of the mjcf
+        tree, which keeps the scaled values at full precision (see conf/backend/dm_control.yaml)."""
         for side in ("left", "right"):  # feet: torsional / rolling friction (condim 4 / 6)
             for geom in model.find("body", robot.foot_link(side)).get_children("geom"):
                 contact = foot_contact(geom.friction, self.torsional_friction, self.rolling_friction)

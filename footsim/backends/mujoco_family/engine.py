@@ -18,6 +18,7 @@ from footsim.backends.mujoco_family.randomization import MujocoRandomization
 from footsim.backends.physics3d import PhysicsSim, levelling_rotation
 from footsim.robots.mjcf import CONTACT_FRICTION, import_mujoco
 from footsim.robots.spec import RobotSpec
+from footsim.walk.ik import LEG_JOINT_NAMES
 
 # mujoco and dm_control pick their GL backend once, at import (the package sets the headless
 # default before either is imported): the value that counts is this one.
@@ -219,6 +220,33 @@ class MujocoModelOptions:
         """Which joints the model has: all, or the legs only when the upper body is welded."""
         self._rigid_joints = frozenset(robot.upper_body_joint_names if self.rigid_upper_body else ())
         self.joint_names = tuple(n for n in robot.joint_names if n not in self._rigid_joints)
+
+    def apply_model_options(self, spec, robot: RobotSpec) -> None:
+        """Write the model options into ``spec`` (a ``mujoco.MjSpec`` of :func:`footsim.robots.mjcf.build_mjcf`)
+        before it is compiled.
+
+        The MuJoCo backend compiles this spec.  The dm-control backend edits its mjcf tree the same
+        way instead: its model comes from ``spec.to_xml()``, and MuJoCo's XML writer keeps 6
+        significant digits, which would round the scaled gains and damping."""
+        for side in ("left", "right"):  # feet: torsional / rolling friction (condim 4 / 6)
+            for geom in spec.body(robot.foot_link(side)).geoms:
+                contact = foot_contact(geom.friction, self.torsional_friction, self.rolling_friction)
+                if contact is not None:
+                    geom.condim, geom.friction = contact
+        for name in self.joint_names:
+            actuator = spec.actuator(name)
+            if self.servo_kp_scale != 1.0:  # position actuators (affine bias): force = kp (ctrl - q)
+                actuator.gainprm[0] *= self.servo_kp_scale
+                actuator.biasprm[1] *= self.servo_kp_scale
+            if self.servo_kv > 0 and name in LEG_JOINT_NAMES:
+                # The servo's D term acts on the tracking error, kv (target velocity - velocity), like a
+                # Dynamixel's PID, not on the absolute joint velocity (that is what joint damping
+                # does, and it caps the joint speed).  The position actuator gives kp (ctrl - q) - kv qdot;
+                # set_leg_targets adds the target velocity as a feed-forward kv/kp * qdot_target to ctrl,
+                # which makes it kp (q_t - q) + kv (qdot_t - qdot).
+                actuator.biasprm[2] = -self.servo_kv
+            if self.servo_damping_scale != 1.0:  # linear joint damping (the servos' back-EMF drag)
+                spec.joint(name).damping[0] *= self.servo_damping_scale
 
 
 class MujocoEngineSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):

@@ -33,7 +33,6 @@ from footsim.backends.mujoco_family.engine import (
     MujocoEngineSim,
     draw_overlay,
     fatal_warning_ids,
-    foot_contact,
     levelling_quat,
     mujoco,
     obstacle_geometry,
@@ -73,21 +72,9 @@ class MujocoSim(MujocoEngineSim):
                 rgba=BALL_RGBA if is_ball else OBSTACLE_RGBA,
             )
             geom.contype = geom.conaffinity = OBSTACLE_BIT
+        self.apply_model_options(spec, robot)
         self.model = m = spec.compile()
         self.robot = robot
-        feet = {mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, robot.foot_link(s)) for s in ("left", "right")}
-        for g in (g for g in range(m.ngeom) if int(m.geom_bodyid[g]) in feet):  # torsional / rolling friction
-            contact = foot_contact(m.geom_friction[g], self.torsional_friction, self.rolling_friction)
-            if contact is not None:
-                m.geom_condim[g], m.geom_friction[g] = contact
-        if self.servo_kp_scale != 1.0:  # position actuators: force = kp (ctrl - q)
-            m.actuator_gainprm[:, 0] *= self.servo_kp_scale
-            m.actuator_biasprm[:, 1] *= self.servo_kp_scale
-        if self.servo_damping_scale != 1.0:  # joint damping (the servos' back-EMF drag) of the robot joints
-            for name in self.joint_names:
-                m.dof_damping[m.jnt_dofadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)]] *= (
-                    self.servo_damping_scale
-                )
         self.data = d = mujoco.MjData(m)
 
         def jid(name):
@@ -112,13 +99,7 @@ class MujocoSim(MujocoEngineSim):
             if m.actuator_trnid[a, 0] != jid(n):
                 raise ValueError(f"actuator {n!r} does not drive joint {n!r}")
         self._leg_ctrl = np.array([self.actuator[n] for n in LEG_JOINT_NAMES], dtype=np.intp)
-        if self.servo_kv > 0:
-            # The servo's D term acts on the tracking error, kv (target velocity - velocity), like a
-            # Dynamixel's PID, not on the absolute joint velocity (that is what joint damping
-            # does, and it caps the joint speed).  MuJoCo's position actuator gives
-            # kp (ctrl - q) - kv qdot; set_leg_targets adds the target velocity as a feed-forward
-            # kv/kp * qdot_target to ctrl, which makes it kp (q_t - q) + kv (qdot_t - qdot).
-            m.actuator_biasprm[self._leg_ctrl, 2] = -self.servo_kv
+        if self.servo_kv > 0:  # the servo D term on the tracking error (see apply_model_options)
             self._feed_forward = ServoFeedForward(self.servo_kv, m.actuator_gainprm[self._leg_ctrl, 0], self.control_dt)
         # The obstacle pool's geom ids: the cylinders, then the ball.
         self.obstacle_geoms = np.array(
