@@ -100,7 +100,6 @@ from footsim.backends.mujoco_family.engine import (  # noqa: E402
     MujocoEngineSim,
     draw_overlay,
     fatal_warning_ids,
-    foot_contact,
     levelling_quat,
     obstacle_geometry,
     require_rendering,
@@ -143,7 +142,6 @@ class DmControlSim(MujocoEngineSim):
         model.option.integrator = self.integrator
         offscreen = model.visual.get_children("global")
         offscreen.offwidth = offscreen.offheight = self.max_render_size
-        self._apply_model_options(model, robot)
 
         torso = model.find("body", robot.base_link)
         offset, xyaxes = _camera_frame()
@@ -169,6 +167,7 @@ class DmControlSim(MujocoEngineSim):
         # refresh position-dependent fields (~20 % of the physics time), which nothing here reads:
         # the base pose comes from qpos, contacts may be one timestep old, as in the MuJoCo backend.
         physics.legacy_step = False
+        self.apply_model_options(physics.model.ptr, robot)  # before anything reads the gains
 
         # Name mapping, once: mjcf elements by name → bindings into the compiled model / data.
         def find(kind, name):
@@ -211,34 +210,6 @@ class DmControlSim(MujocoEngineSim):
         )
         self._park_all()
         physics.forward()
-
-    def _apply_model_options(self, model, robot: RobotSpec) -> None:
-        """The MuJoCo backend's model options (``apply_model_options`` on its MjSpec) as edits of the mjcf
-        tree, which keeps the scaled values at full precision (see conf/backend/dm_control.yaml)."""
-        for side in ("left", "right"):  # feet: torsional / rolling friction (condim 4 / 6)
-            for geom in model.find("body", robot.foot_link(side)).get_children("geom"):
-                contact = foot_contact(geom.friction, self.torsional_friction, self.rolling_friction)
-                if contact is not None:
-                    geom.condim, geom.friction = contact
-        if self.servo_kp_scale != 1.0:  # position actuators (general, affine bias): force = kp (ctrl - q)
-            for name in self.joint_names:
-                actuator = model.find("actuator", name)
-                gain, bias = np.array(actuator.gainprm, dtype=float), np.array(actuator.biasprm, dtype=float)
-                gain[0] *= self.servo_kp_scale
-                bias[1] *= self.servo_kp_scale
-                actuator.gainprm, actuator.biasprm = gain, bias
-        if self.servo_kv > 0:  # leg servos: velocity gain kv (bias -kv qdot), target velocity fed forward in ctrl
-            for name in LEG_JOINT_NAMES:
-                actuator = model.find("actuator", name)
-                bias = np.zeros(3)
-                given = np.array(actuator.biasprm, dtype=float)
-                bias[: len(given)] = given[:3]
-                bias[2] = -self.servo_kv
-                actuator.biasprm = bias
-        if self.servo_damping_scale != 1.0:  # joint damping (the servos' back-EMF drag) of the robot joints
-            for name in self.joint_names:
-                joint = model.find("joint", name)
-                joint.damping = (joint.damping or 0.0) * self.servo_damping_scale
 
     def _park_all(self) -> None:
         pool = self._pool_bound

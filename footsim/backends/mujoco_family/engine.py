@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import os
+from typing import Any
 
 import numpy as np
 
@@ -221,32 +222,33 @@ class MujocoModelOptions:
         self._rigid_joints = frozenset(robot.upper_body_joint_names if self.rigid_upper_body else ())
         self.joint_names = tuple(n for n in robot.joint_names if n not in self._rigid_joints)
 
-    def apply_model_options(self, spec, robot: RobotSpec) -> None:
-        """Write the model options into ``spec`` (a ``mujoco.MjSpec`` of :func:`footsim.robots.mjcf.build_mjcf`)
-        before it is compiled.
+    def apply_model_options(self, m: Any, robot: RobotSpec) -> None:
+        """Write the model options into the compiled model ``m`` (a ``mujoco.MjModel``: the MuJoCo
+        backend's, or dm-control's ``physics.model.ptr``), once, before the first step.
 
-        The MuJoCo backend compiles this spec.  The dm-control backend edits its mjcf tree the same
-        way instead: its model comes from ``spec.to_xml()``, and MuJoCo's XML writer keeps 6
-        significant digits, which would round the scaled gains and damping."""
-        for side in ("left", "right"):  # feet: torsional / rolling friction (condim 4 / 6)
-            for geom in spec.body(robot.foot_link(side)).geoms:
-                contact = foot_contact(geom.friction, self.torsional_friction, self.rolling_friction)
-                if contact is not None:
-                    geom.condim, geom.friction = contact
-        for name in self.joint_names:
-            actuator = spec.actuator(name)
-            if self.servo_kp_scale != 1.0:  # position actuators (affine bias): force = kp (ctrl - q)
-                actuator.gainprm[0] *= self.servo_kp_scale
-                actuator.biasprm[1] *= self.servo_kp_scale
-            if self.servo_kv > 0 and name in LEG_JOINT_NAMES:
-                # The servo's D term acts on the tracking error, kv (target velocity - velocity), like a
-                # Dynamixel's PID, not on the absolute joint velocity (that is what joint damping
-                # does, and it caps the joint speed).  The position actuator gives kp (ctrl - q) - kv qdot;
-                # set_leg_targets adds the target velocity as a feed-forward kv/kp * qdot_target to ctrl,
-                # which makes it kp (q_t - q) + kv (qdot_t - qdot).
-                actuator.biasprm[2] = -self.servo_kv
-            if self.servo_damping_scale != 1.0:  # linear joint damping (the servos' back-EMF drag)
-                spec.joint(name).damping[0] *= self.servo_damping_scale
+        Both backends run the same code on the same compiled arrays, so the configured values
+        reach the solver unrounded (an XML round trip would keep 6 significant digits)."""
+        name2id = mujoco.mj_name2id
+        feet = {name2id(m, mujoco.mjtObj.mjOBJ_BODY, robot.foot_link(side)) for side in ("left", "right")}
+        for g in (g for g in range(m.ngeom) if int(m.geom_bodyid[g]) in feet):  # torsional / rolling friction
+            contact = foot_contact(m.geom_friction[g], self.torsional_friction, self.rolling_friction)
+            if contact is not None:
+                m.geom_condim[g], m.geom_friction[g] = contact
+        actuators = [name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, name) for name in self.joint_names]
+        if self.servo_kp_scale != 1.0:  # position actuators (affine bias): force = kp (ctrl - q)
+            m.actuator_gainprm[actuators, 0] *= self.servo_kp_scale
+            m.actuator_biasprm[actuators, 1] *= self.servo_kp_scale
+        if self.servo_kv > 0:
+            # The servo's D term acts on the tracking error, kv (target velocity - velocity), like a
+            # Dynamixel's PID, not on the absolute joint velocity (that is what joint damping does,
+            # and it caps the joint speed).  The position actuator gives kp (ctrl - q) - kv qdot; the
+            # servo feed-forward adds the target velocity as kv/kp * qdot_target to ctrl, which
+            # makes it kp (q_t - q) + kv (qdot_t - qdot).
+            legs = [name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, name) for name in LEG_JOINT_NAMES]
+            m.actuator_biasprm[legs, 2] = -self.servo_kv
+        if self.servo_damping_scale != 1.0:  # linear joint damping (the servos' back-EMF drag)
+            for name in self.joint_names:
+                m.dof_damping[m.jnt_dofadr[name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)]] *= self.servo_damping_scale
 
 
 class MujocoEngineSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):

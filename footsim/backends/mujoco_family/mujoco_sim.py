@@ -72,8 +72,8 @@ class MujocoSim(MujocoEngineSim):
                 rgba=BALL_RGBA if is_ball else OBSTACLE_RGBA,
             )
             geom.contype = geom.conaffinity = OBSTACLE_BIT
-        self.apply_model_options(spec, robot)
         self.model = m = spec.compile()
+        self.apply_model_options(m, robot)
         self.robot = robot
         self.data = d = mujoco.MjData(m)
 
