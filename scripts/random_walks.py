@@ -17,6 +17,7 @@ import yaml
 from footsim import config as fconf
 from footsim.geometry import Pose2D
 from footsim.scene import Scene
+from footsim.tasks.nav import tilted_over
 from footsim.walk.footsteps import DoubleStep
 
 
@@ -25,7 +26,7 @@ def fall_step(backend, actions: np.ndarray) -> int | None:
     backend.reset(Scene(goal=Pose2D(100.0, 0.0, 0.0)), np.random.default_rng(0))
     for i, action in enumerate(actions):
         result = backend.execute(DoubleStep.from_action(action, backend.robot.step_limits))
-        if result.fell or result.sim_error is not None:
+        if tilted_over(result) or result.sim_error is not None:
             return i + 1
     return None
 

@@ -396,7 +396,7 @@ def test_a_torso_com_offset_changes_the_walk_deterministically():
             sim = backend.sim
             joints = pybullet.getJointStates(sim.robot_id, sim.leg_indices, physicsClientId=sim.client)
             base = pybullet.getBasePositionAndOrientation(sim.robot_id, physicsClientId=sim.client)
-            return [s[:2] for s in joints], base, [(r.pose, r.tilt, r.fell) for r in results]
+            return [s[:2] for s in joints], base, [(r.pose, r.tilt, r.max_tilt) for r in results]
         finally:
             backend.close()
 

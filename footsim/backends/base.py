@@ -18,18 +18,17 @@ from footsim.walk.footsteps import DoubleStep, FeetState
 
 @dataclass
 class StepResult:
-    """What happened while one double step was executed."""
+    """What happened while one double step was executed: truth only (the task decides what it means)."""
 
     pose: Pose2D  # ground-truth navigation pose after the step
     duration_s: float  # simulated seconds the step took
     feet: FeetState | None = None  # planar foot poses after the step
     executed: DoubleStep | None = None  # the double step actually executed (after clipping/interference)
-    fell: bool = False
     collided: bool = False
     sim_error: str | None = None  # why the simulation became invalid, if it did
     info: dict = field(default_factory=dict)
     tilt: tuple[float, float] = (0.0, 0.0)  # fused (roll, pitch) of the base at the end [rad]; 0 in 2D
-    max_tilt: float = 0.0  # largest |roll| or |pitch| seen during the step [rad]; 0 in 2D
+    max_tilt: float = 0.0  # largest |roll| or |pitch| seen during the step [rad]; π/2 lying down; 0 walking in 2D
 
 
 @dataclass(frozen=True)

@@ -555,7 +555,6 @@ class Physics3DBackend(Backend):
             duration_s=ticks * self.control_dt,
             feet=trajectory.feet,
             executed=trajectory.executed,
-            fell=fell,
             collided=collided,
             sim_error=error,
             info=info,

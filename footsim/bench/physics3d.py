@@ -20,6 +20,7 @@ import numpy as np
 from footsim.calibration.walkcheck import make_backend
 from footsim.geometry import Pose2D
 from footsim.scene import Scene
+from footsim.tasks.nav import tilted_over
 from footsim.walk.footsteps import DoubleStep
 
 #: The benchmark's double steps (actions in [-1, 1]), cycled: forward at half the limit with a
@@ -93,7 +94,7 @@ def bench_backend(name: str, repeats: int = 100, seed: int = 0) -> dict:
                 result = backend.execute(ds)
                 env_cpu += time.process_time() - t_cpu
                 env_wall += time.perf_counter() - t_wall
-                fell = fell or result.fell or result.sim_error is not None
+                fell = fell or tilted_over(result) or result.sim_error is not None
                 if replay is not None:
                     t_cpu, t_wall = time.process_time(), time.perf_counter()
                     for targets in recorded[i]:

@@ -40,7 +40,7 @@ from footsim import config as fconf
 from footsim.backends.base import Backend, StepResult
 from footsim.geometry import Pose2D, wrap_angle
 from footsim.scene import Scene
-from footsim.tasks.nav import NavTaskConfig
+from footsim.tasks.nav import NavTaskConfig, tilted_over
 from footsim.utils import atomic_save, atomic_write_text
 from footsim.walk.footsteps import DoubleStep, FeetState
 
@@ -166,7 +166,7 @@ class Trial:
 def _failed(result: StepResult, threshold: float) -> tuple[bool, str | None]:
     if result.sim_error is not None:
         return False, result.sim_error
-    return bool(result.fell or result.max_tilt > threshold), None
+    return tilted_over(result, threshold), None
 
 
 def landing_error(geometry: Any, before: FeetState, double_step: DoubleStep, after: FeetState) -> tuple[float, float]:

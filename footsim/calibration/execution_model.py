@@ -29,7 +29,9 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from tqdm import tqdm
@@ -151,10 +153,17 @@ def _draw(rng: np.random.Generator, scale: float) -> np.ndarray:
 
 # -- data ---------------------------------------------------------------------------------------
 def collect(
-    backend, n_steps: int, seed: int = 0, scale: float = 1.0, repeat: float = 0.9, progress: bool = True
+    backend,
+    n_steps: int,
+    fell: Callable[[Any], bool],
+    seed: int = 0,
+    scale: float = 1.0,
+    repeat: float = 0.9,
+    progress: bool = True,
 ) -> dict[str, np.ndarray]:
     """Random double steps on ``backend``; arrays ``action (n,6), predicted (n,3), executed (n,3),
-    fell (n,)`` (``executed`` is NaN where the robot fell or the sim failed)."""
+    fell (n,)`` (``executed`` is NaN where the robot fell or the sim failed).  ``fell(result)`` is
+    the fall rule (the task's: ``footsim.tasks.nav.tilted_over``)."""
 
     rng = np.random.default_rng(seed)
     robot = backend.robot
@@ -183,7 +192,7 @@ def collect(
             else geometry.execute(feet, DoubleStep.from_action(action, robot.step_limits))[1]
         )
         predicted = feet.nav_pose.relative(after.nav_pose)
-        bad = result.fell or result.sim_error is not None or not all(math.isfinite(v) for v in result.pose)
+        bad = fell(result) or result.sim_error is not None or not all(math.isfinite(v) for v in result.pose)
         executed = (math.nan,) * 3 if bad else tuple(pose.relative(result.pose))
         rows["action"].append(action.copy())
         rows["predicted"].append(tuple(predicted))

@@ -21,6 +21,7 @@ from footsim import config as fconf
 from footsim.calibration.execution_model import ExecutionModel
 from footsim.geometry import Pose2D, wrap_angle
 from footsim.scene import Scene
+from footsim.tasks.nav import tilted_over
 from footsim.walk.footsteps import DoubleStep
 
 TOLERANCE = 0.25
@@ -64,7 +65,7 @@ def run_sequence(backend, sequence: Sequence, seed: int = 0) -> dict:
             break
         total_yaw += wrap_angle(result.pose.theta - pose.theta)  # unwrapped heading change
         pose = result.pose
-        if result.fell:
+        if tilted_over(result):
             fell = True
             break
     if sequence.stop and not fell and error is None and hasattr(backend, "stop_walking"):

@@ -47,6 +47,7 @@ from footsim.backends.base import backend_class
 from footsim.geometry import Pose2D, wrap_angle
 from footsim.rl.common import write_json
 from footsim.scene import Scene
+from footsim.tasks.nav import tilted_over
 from footsim.walk.footsteps import DoubleStep
 
 DIRECTIONS = {
@@ -101,7 +102,7 @@ def measure_direction(
                 start, seconds, yaw = backend.planar_pose(), 0.0, 0.0
             before = backend.planar_pose()
             result = backend.execute(order)
-            if result.sim_error is not None or result.fell:
+            if result.sim_error is not None or tilted_over(result):
                 fell, error = True, result.sim_error
                 break
             seconds += result.duration_s

@@ -47,6 +47,10 @@ DEFAULT_TERMINATIONS = {"sim_error": None, "fall": None, "collision": None, "suc
 OUTCOMES = ("running", "success", "timeout", "fall", "collision", "sim_error")
 
 
+#: [rad] Default fall threshold: fused roll or pitch beyond it is a fall (thesis 5.1.2).
+FALL_THRESHOLD = 0.7
+
+
 @dataclass(frozen=True)
 class NavTaskConfig:
     obstacles: bool = False
@@ -59,7 +63,9 @@ class NavTaskConfig:
     ray_scale: float = 1.0  # observation: tanh(ray / ray_scale)
     reward: dict = field(default_factory=lambda: {k: dict(v) for k, v in DEFAULT_REWARD.items()})
     terminations: dict = field(default_factory=lambda: dict(DEFAULT_TERMINATIONS))
-    fall_threshold: float = 0.7  # [rad] the step's largest trunk roll or pitch beyond this is a fall (thesis 5.1.2)
+    fall_threshold: float = (
+        FALL_THRESHOLD  # [rad] the step's largest trunk roll or pitch beyond this is a fall (thesis 5.1.2)
+    )
     #: whether touching an obstacle ends the episode; None: by backend kind (2D yes, as in the
     #: thesis; 3D no, the contact is reported in ``info``), resolved by :class:`NavTask`
     collision_ends_episode: bool | None = None
@@ -300,10 +306,16 @@ def sim_error(step: StepContext) -> bool:
     return step.result.sim_error is not None
 
 
+def tilted_over(result: Any, threshold: float = FALL_THRESHOLD) -> bool:
+    """The fall rule: the step's largest trunk roll or pitch (``StepResult.max_tilt``) beyond
+    ``threshold`` [rad].  The task's ``fall`` term and the walking tools use it."""
+    return result.max_tilt > threshold
+
+
 @termination_term()
 def fall(step: StepContext) -> bool:
     """The step's largest trunk roll or pitch exceeded ``fall_threshold``."""
-    return step.result.max_tilt > step.config.fall_threshold
+    return tilted_over(step.result, step.config.fall_threshold)
 
 
 @termination_term()

@@ -10,6 +10,7 @@ from footsim.backends.base import require_known_backends
 from footsim.calibration.execution_model import DEFAULT_FEATURES, OUTPUTS, collect, fit
 from footsim.calibration.walkcheck import execution_model_consistency, make_backend
 from footsim.rl.common import write_json
+from footsim.tasks.nav import tilted_over
 from footsim.utils import atomic_write_text, parse_kv_args
 
 # -- command ------------------------------------------------------------------------------------
@@ -56,7 +57,7 @@ def main(argv: list[str] | None = None) -> None:
 
     backend = make_backend(args["backend"])
     try:
-        data = collect(backend, n_steps, seed, scale, repeat)
+        data = collect(backend, n_steps, tilted_over, seed, scale, repeat)
     finally:
         backend.close()
     names = [f for f in args["features"].split(",") if f]

@@ -60,12 +60,11 @@ def box_hits_circles(x: float, y: float, theta: float, half_length: float, half_
 
 # ``execute`` builds StepResult positionally (a hot path): make sure the field order is the one used.
 # Fields after ``info`` (the 3D tilt) keep their defaults here.
-assert [f.name for f in fields(StepResult)][:8] == [
+assert [f.name for f in fields(StepResult)][:7] == [
     "pose",
     "duration_s",
     "feet",
     "executed",
-    "fell",
     "collided",
     "sim_error",
     "info",
@@ -246,7 +245,7 @@ class Pymunk2DBackend(Backend):
         self.nav_history.append(nav)
         # positional (checked against StepResult's fields at import): keywords cost a µs here
         result = StepResult(
-            nav, self._duration, after_second, executed, fell, collided, None, {"foot_interference": n_interfered}
+            nav, self._duration, after_second, executed, collided, None, {"foot_interference": n_interfered}
         )
         if fell:  # the execution model's fall: the tilt of a robot lying on the ground, as the 3D driver reports it
             result.max_tilt = math.pi / 2
