@@ -11,7 +11,7 @@ from footsim.env import FootstepEnv
 from footsim.geometry import Pose2D
 from footsim.scene import Obstacle, Scene
 from footsim.tasks.nav import NavTask, NavTaskConfig
-from footsim.tasks.terms import reward_term
+from footsim.tasks.terms import REWARD_TERMS, TERMINATION_TERMS, reward_table, reward_term, termination_table
 
 
 def lateral_offset(step, scale: float) -> float:
@@ -108,6 +108,18 @@ def test_a_user_term_needing_the_tilt_makes_the_task_ask_for_it():
     task.reset(Scene(Pose2D(2.0, 0.0, 0.0)), Pose2D())
     reward, terms, _, _ = task.step(_result(max_tilt=0.25, tilt=(0.1, -0.25)), [0.0] * 6)
     assert terms == {"upright": 0.75} and reward == 0.375 and task.tilt == (0.1, -0.25, 0.25)
+
+
+def test_a_registered_term_named_by_func_keeps_its_registration():
+    """``func`` naming a registered function under another name keeps what it was registered
+    with: a reward term its requirements, a termination term its settle rule (success: the
+    remaining steps are paid)."""
+    (arrived,) = termination_table({"arrived": {"func": "footsim.tasks.nav:success"}})
+    assert arrived.name == "arrived" and arrived.settle is TERMINATION_TERMS["success"].settle is not None
+    (upright,) = reward_table(
+        {"upright": {"weight": 1.0, "func": "footsim.tasks.nav:stability", "params": {"scale": 0.2}}}
+    )
+    assert upright.needs == REWARD_TERMS["stability"].needs == frozenset({"tilt"})
 
 
 def test_a_user_termination_term_names_its_outcome():

@@ -179,6 +179,20 @@ def _bind(func: Callable, params: dict) -> Callable:
     return partial(func, **params) if params else func
 
 
+def _spec(name: str, entry: dict, registry: Mapping[str, Any], bare: Callable[[Callable], Any], where: str) -> Any:
+    """A table entry's term spec: the registered one of that name, or the function named by
+    ``func`` with what its module registered it with (``needs``, ``settle``); ``bare(func)`` for
+    a function nobody registered."""
+    if entry.get("func") is not None:
+        func = import_function(entry["func"], f"{where}.{name}")
+        return next((spec for spec in registry.values() if spec.func is func), None) or bare(func)
+    if name in registry:
+        return registry[name]
+    raise ValueError(
+        f"{where}: unknown term {name!r}; registered: {sorted(registry)} (or give func: 'package.module:function')"
+    )
+
+
 def reward_table(table: Mapping[str, Any], where: str = "task.reward") -> tuple[RewardTerm, ...]:
     """Resolve a ``reward`` config table (term name → ``{weight, params, func}``), in its order."""
     if not isinstance(table, Mapping):
@@ -193,19 +207,8 @@ def reward_table(table: Mapping[str, Any], where: str = "task.reward") -> tuple[
             or not (math.isfinite(weight) and weight >= 0)
         ):
             raise ValueError(f"{where}.{name}.weight must be a number >= 0, got {weight!r}")
-        if entry.get("func") is not None:
-            func = import_function(entry["func"], f"{where}.{name}")
-            # a function its module registered with @reward_term(needs=...) keeps its requirements
-            needs = next((spec.needs for spec in REWARD_TERMS.values() if spec.func is func), frozenset())
-        elif name in REWARD_TERMS:
-            spec = REWARD_TERMS[name]
-            func, needs = spec.func, spec.needs
-        else:
-            raise ValueError(
-                f"{where}: unknown term {name!r}; registered: {sorted(REWARD_TERMS)} "
-                "(or give func: 'package.module:function')"
-            )
-        terms.append(RewardTerm(str(name), float(weight), _bind(func, entry["params"]), needs))
+        spec = _spec(name, entry, REWARD_TERMS, RewardTermSpec, where)
+        terms.append(RewardTerm(str(name), float(weight), _bind(spec.func, entry["params"]), spec.needs))
     return tuple(terms)
 
 
@@ -216,16 +219,6 @@ def termination_table(table: Mapping[str, Any], where: str = "task.terminations"
     terms = []
     for name, raw in table.items():
         entry = _entry(raw, f"{where}.{name}", frozenset({"params", "func"}))
-        settle = None
-        if entry.get("func") is not None:
-            func = import_function(entry["func"], f"{where}.{name}")
-        elif name in TERMINATION_TERMS:
-            spec = TERMINATION_TERMS[name]
-            func, settle = spec.func, spec.settle
-        else:
-            raise ValueError(
-                f"{where}: unknown term {name!r}; registered: {sorted(TERMINATION_TERMS)} "
-                "(or give func: 'package.module:function')"
-            )
-        terms.append(TerminationTerm(str(name), _bind(func, entry["params"]), settle))
+        spec = _spec(name, entry, TERMINATION_TERMS, TerminationTermSpec, where)
+        terms.append(TerminationTerm(str(name), _bind(spec.func, entry["params"]), spec.settle))
     return tuple(terms)
