@@ -283,14 +283,14 @@ def test_reset_stands_on_flat_soles_like_mujoco(backend):
     sim = backend.sim
     spec = backend.robot
     for side in ("left", "right"):
-        foot, offset = spec.sole(side)
+        foot, origin = spec.sole(side)
         state = pybullet.getLinkState(
             sim.robot_id, sim.link_index[foot], computeForwardKinematics=1, physicsClientId=sim.client
         )
         rotation = np.array(pybullet.getMatrixFromQuaternion(state[5])).reshape(3, 3)
         assert abs(rotation[2, 0]) < 5e-3 and abs(rotation[2, 1]) < 5e-3  # level: no pitch, no roll
-        sole = np.asarray(state[4]) + rotation @ np.asarray(offset)
-        assert abs(sole[2]) < 2e-3  # resting on the floor
+        sole = np.asarray(state[4]) + rotation @ np.asarray(origin.xyz)
+        assert abs(sole[2] + spec.sole_clearance(side)) < 2e-3  # the foot's lowest point on the floor
         assert pybullet.getContactPoints(sim.robot_id, sim.floor_id, sim.link_index[foot], physicsClientId=sim.client)
     mujoco_backend = pytest.importorskip("footsim.calibration.walkcheck").make_backend("mujoco")
     try:

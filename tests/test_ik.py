@@ -167,7 +167,7 @@ def test_compiled_both_legs_ik_reproduces_fk_in_any_trunk_frame(tilted_soles):
         sole = world[side]
         p_local = np.einsum("nji,nj->ni", Rt, sole[:3].T - trunk[:3].T)
         R_local = np.transpose(Rt, (0, 2, 1)) @ rotation_from_rpy(sole[3:].T)
-        q_numpy, reachable_numpy = leg_ik_rotation(p_local, R_local, LEG.side_sign(side), LEG)
+        q_numpy, reachable_numpy = leg_ik_rotation(p_local, R_local, side, LEG)
         np.testing.assert_allclose(q[:, 6 * k : 6 * k + 6], q_numpy, atol=1e-12)
         both &= reachable_numpy
         pos, rot = leg_fk(q[reachable, 6 * k : 6 * k + 6], side, LEG)

@@ -1,8 +1,8 @@
 """The robot spec and the models generated from it (MJCF for MuJoCo/dm-control, URDF for PyBullet).
 
 Expectations come from outside the code under test: the public Wolfgang-OP numbers (FACTS.md),
-independent parsers (MuJoCo, dm_control, PyBullet, urdfdom's check_urdf), and a forward
-kinematics written here from LegGeometry and the joint convention alone.
+independent parsers (MuJoCo, dm_control, PyBullet, urdfdom's check_urdf), and the URDF table's
+own forward kinematics (tests/urdf_table.py, read from FACTS.md).
 """
 
 from __future__ import annotations
@@ -14,11 +14,11 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
+import urdf_table
 
 from footsim.robots.registry import get_robot, robot_from_config
 from footsim.robots.spec import Box, Inertial, Joint, Link, RobotSpec, ServoParams, sole_frame_name
 from footsim.robots.wolfgang import wolfgang
-from footsim.walk.ik import LegGeometry
 
 mujoco = pytest.importorskip("mujoco")
 
@@ -60,7 +60,7 @@ def bullet(urdf_text, tmp_path_factory):
     pybullet.disconnect(client)
 
 
-# ---- independent kinematics: LegGeometry + the convention, nothing from footsim.robots -----
+# ---- independent kinematics: the URDF table of FACTS.md (tests/urdf_table.py) ---------------
 
 
 def _rot(axis: str, angle: float) -> np.ndarray:
@@ -72,20 +72,10 @@ def _rot(axis: str, angle: float) -> np.ndarray:
     }[axis]
 
 
-def leg_fk(legs: LegGeometry, side: str, q6) -> tuple[np.ndarray, np.ndarray]:
-    """Sole position and orientation in the base frame from LegGeometry (chain yaw z, roll x,
-    pitch y, knee y, ankle pitch y, ankle roll x; segments straight down)."""
-    yaw, roll, pitch, knee, ankle_pitch, ankle_roll = q6
-    sign = 1.0 if side == "left" else -1.0
-    pos = np.array([0.0, sign * legs.hip_offset_y, 0.0])
-    rot = _rot("z", yaw)
-    pos = pos + rot @ [0, 0, -legs.hip_offset_z]
-    rot = rot @ _rot("x", roll) @ _rot("y", pitch)
-    pos = pos + rot @ [0, 0, -legs.thigh]
-    rot = rot @ _rot("y", knee)
-    pos = pos + rot @ [0, 0, -legs.shin]
-    rot = rot @ _rot("y", ankle_pitch) @ _rot("x", ankle_roll)
-    return pos + rot @ [0, 0, -legs.ankle_to_sole], rot
+def table_sole(q: dict[str, float], side: str) -> tuple[np.ndarray, np.ndarray]:
+    """Sole frame pose in the torso frame by the URDF table's own kinematics."""
+    frame = urdf_table.forward_kinematics(q)[f"{side[0]}_sole"]
+    return frame[:3, 3], frame[:3, :3]
 
 
 def mujoco_sole(mj, spec, q: dict[str, float], side: str) -> tuple[np.ndarray, np.ndarray]:
@@ -143,107 +133,141 @@ def leg_q(spec, q: dict[str, float], side: str) -> list[float]:
 # ---- the spec -------------------------------------------------------------------------------
 
 
-def test_wolfgang_has_the_real_robots_20_joints_and_mass(spec):
+def test_wolfgang_has_the_urdf_links(spec):
+    table = urdf_table.links()
     assert spec.dof == 20
     assert set(spec.joint_names) == EXPECTED_JOINTS
-    assert spec.total_mass == pytest.approx(6.117, abs=0.01)
-    per_leg = sum(
-        spec.link(f"l_{n}").inertial.mass for n in ("hip_1", "hip_2", "upper_leg", "lower_leg", "ankle", "foot")
-    )
-    assert per_leg == pytest.approx(1.307, abs=0.01)  # FACTS: each leg 1.307 kg (+ cleats)
-    assert spec.link("torso").inertial.mass == pytest.approx(2.084)
-    assert spec.link("torso").inertial.com[2] == pytest.approx(0.110)
+    # URDF total 6.1167 kg = the spec's links + base_link's 0.1 g (folded away).
+    assert spec.total_mass == pytest.approx(sum(m for m, _, _ in table.values()) - 0.0001, abs=1e-6)
+    for link in spec.links:
+        mass, com, inertia = table[link.name]
+        if link.name.endswith("_foot"):  # the four 1.66 g cleats are folded in
+            assert link.inertial.mass == pytest.approx(mass + 4 * 0.00165976, abs=1e-8)
+            assert np.linalg.norm(np.subtract(link.inertial.com, com)) < 2e-3
+            continue
+        assert link.inertial.mass == pytest.approx(mass), link.name
+        np.testing.assert_allclose(link.inertial.com, com, atol=1e-12, err_msg=link.name)
+        np.testing.assert_allclose(link.inertial.matrix, inertia, atol=1e-12, err_msg=link.name)
     assert (spec.foot_length, spec.foot_width) == (0.154, 0.106)
     assert (spec.step_limits.x, spec.step_limits.y, spec.step_limits.theta) == (0.156, 0.103, 0.764)
 
 
-def test_leg_geometry_is_the_public_chain(spec):
+def test_wolfgang_has_the_urdf_joints_and_servo_classes(spec):
+    table = urdf_table.joints()
+    motors = {"Knee": (12.9, 3.87), "Shoulder": (7.3, 8.17), "Elbow": (7.3, 8.17), "Head": (7.3, 8.17)}
+    for joint in spec.joints:
+        row = table[joint.name]
+        assert (joint.parent, joint.child) == (row.parent, row.child)
+        np.testing.assert_allclose(joint.origin.xyz, row.xyz, atol=1e-12)
+        np.testing.assert_allclose(joint.origin.rpy, row.rpy, atol=1e-12)
+        np.testing.assert_allclose(joint.axis, row.axis / np.linalg.norm(row.axis), atol=1e-12)
+        assert (joint.lower, joint.upper) == (row.lower, row.upper)
+        assert (joint.effort, joint.velocity) == (row.effort, row.velocity)
+        expected = next((v for k, v in motors.items() if k in joint.name), (10.0, 5.76))  # MX-106 otherwise
+        assert (joint.effort, joint.velocity) == expected, joint.name
+
+
+def test_model_kinematics_is_the_urdf_table_within_a_millimetre(spec, mj):
+    """Sole poses at random joint angles: the spec's FK and the generated MJCF against the URDF
+    table's own kinematics (the issue's bound is 1 mm; both agree to numerical precision)."""
+    for q in random_configs(spec, 20, seed=3) + [{}, spec.walk_ready]:
+        for side in ("left", "right"):
+            ref_pos, ref_rot = table_sole(q, side)
+            sole = spec.sole_transform(side, q)
+            np.testing.assert_allclose(sole[:3, 3], ref_pos, atol=1e-9)
+            np.testing.assert_allclose(sole[:3, :3], ref_rot, atol=1e-9)
+            pos, rot = mujoco_sole(mj, spec, q, side)
+            assert np.abs(pos - ref_pos).max() < 1e-3
+            np.testing.assert_allclose(pos, ref_pos, atol=1e-9)
+            np.testing.assert_allclose(rot, ref_rot, atol=1e-9)
+
+
+def test_leg_geometry_is_read_from_the_joints(spec):
     legs = spec.leg_geometry
-    assert (legs.hip_offset_y, legs.hip_offset_z, legs.thigh, legs.shin, legs.ankle_to_sole) == pytest.approx(
-        (0.055, 0.0414, 0.169, 0.170, 0.0529)
-    )
+    for side, sign in (("left", 1.0), ("right", -1.0)):
+        chain = legs.chain(side)
+        # FACTS "Leg geometry derived from the joint origins": hip-yaw axes at y = ±0.055; hip
+        # roll/pitch centre 23.1 mm in front of and 41.4 mm below the yaw point; thigh 0.169, shank
+        # 0.170; ankle centre 52.9 mm above, 21.6 mm behind and 15.2 mm inboard of the sole frame.
+        assert chain.hip_yaw == pytest.approx((0.0, sign * 0.055, 0.0), abs=1e-9)
+        assert chain.hip_centre == pytest.approx((0.0231, 0.0, -0.0414), abs=1e-6)
+        assert chain.thigh == pytest.approx(0.169, abs=3e-4) and chain.shin == pytest.approx(0.170, abs=1e-6)
+        assert chain.ankle == pytest.approx((-0.0217, -sign * 0.0152, 0.0529), abs=2e-4)
     assert spec.leg_joint_names("left") == tuple("L" + j for j in LEG)
     assert spec.leg_joint_names("R") == tuple("R" + j for j in LEG)
-    assert spec.leg_limits("left").shape == (6, 2)
     assert spec.leg_limits("right")[1] == pytest.approx((spec.joint("RHipRoll").lower, spec.joint("RHipRoll").upper))
     with pytest.raises(ValueError, match="side"):
         spec.leg_joint_names("middle")
-    # Straight legs: torso origin -> sole 0.433 m (FACTS).
-    assert -spec.sole_transform("left")[2, 3] == pytest.approx(0.4333, abs=1e-6)
+    assert spec.sole_clearance("left") == pytest.approx(0.0029)  # cleat tips above the sole frame (FACTS)
 
 
-def test_right_leg_mirrors_the_left(spec):
-    for joint in LEG + ("ShoulderPitch", "ShoulderRoll", "Elbow"):
-        left, right = spec.joint("L" + joint), spec.joint("R" + joint)
-        if joint in ("HipYaw", "HipRoll", "AnkleRoll", "ShoulderRoll"):
-            assert (right.lower, right.upper) == pytest.approx((-left.upper, -left.lower))
-        else:
-            assert (right.lower, right.upper) == pytest.approx((left.lower, left.upper))
-        assert right.effort == left.effort and right.servo == left.servo
-    assert spec.joint("LKnee").effort == 12.9 and spec.joint("LHipPitch").effort == 10.0
-    assert spec.joint("HeadPan").effort == 7.3 and spec.joint("LElbow").velocity == 8.17
+def test_ik_lands_the_urdf_sole_where_asked(spec):
+    """The walk engine's IK with this spec's legs: the URDF table's FK of its answer is the target."""
+    from footsim.walk.ik import leg_ik
+
+    rng = np.random.default_rng(11)
+    for side, sign in (("left", 1.0), ("right", -1.0)):
+        targets = np.column_stack(
+            [rng.uniform(-0.08, 0.10, 40), sign * rng.uniform(0.04, 0.14, 40), -rng.uniform(0.32, 0.40, 40)]
+        )
+        rpy = np.column_stack([rng.uniform(-0.15, 0.15, 40), rng.uniform(-0.25, 0.25, 40), rng.uniform(-0.5, 0.5, 40)])
+        q6, reachable = leg_ik(targets, rpy, side, spec.leg_geometry, spec.leg_limits(side))
+        assert reachable.all()
+        for target, angles, q in zip(targets, rpy, q6):
+            pos, rot = table_sole(dict(zip(spec.leg_joint_names(side), q)), side)
+            assert np.abs(pos - target).max() < 5e-5  # URDF rounding (1.5708 for pi/2) leaves µm
+            np.testing.assert_allclose(
+                rot, _rot("z", angles[2]) @ _rot("y", angles[1]) @ _rot("x", angles[0]), atol=2e-4
+            )
 
 
-def test_walk_ready_pose_stands_flat_at_walk_height(spec):
+def test_walk_ready_pose_is_the_real_robots_stance(spec):
     q = spec.walk_ready
-    assert set(q) == EXPECTED_JOINTS
+    assert set(q) == EXPECTED_JOINTS - {"LShoulderRoll", "RShoulderRoll", "HeadPan", "HeadTilt"} | set(q)
     for side, sign in (("left", 1), ("right", -1)):
-        pos, rot = leg_fk(spec.leg_geometry, side, leg_q(spec, q, side))
-        assert pos[2] == pytest.approx(-0.3948, abs=1e-9)  # WalkParams.trunk_height
-        assert pos[1] == pytest.approx(sign * 0.1799 / 2, abs=1e-9)  # WalkParams.foot_distance
-        assert pos[0] == pytest.approx(0.0, abs=1e-9)
-        np.testing.assert_allclose(rot, np.eye(3), atol=1e-9)  # foot flat
-    # A crouch in our convention, close to the real robot's 5.8° hip roll.
-    assert q["LHipPitch"] < 0 < q["LKnee"] and q["LAnklePitch"] < 0
-    assert math.degrees(q["LHipRoll"]) == pytest.approx(5.8, abs=1.5)
-
-
-def _solve_leg(spec, side: str, target_pos, target_rot, guess):
-    from scipy.optimize import least_squares
-
-    legs = spec.leg_geometry
-
-    def residual(q6):
-        pos, rot = leg_fk(legs, side, q6)
-        return np.concatenate([pos - target_pos, 0.1 * (rot - target_rot).ravel()])
-
-    sol = least_squares(residual, guess, xtol=1e-14, ftol=1e-14, gtol=1e-14)
-    assert np.abs(residual(sol.x)).max() < 1e-7, "workspace sample not reachable"
-    return sol.x
+        pos, rot = table_sole(q, side)
+        assert pos[2] == pytest.approx(-0.3948, abs=5e-5)  # walk=bitbots_sim trunk_height
+        assert pos[1] == pytest.approx(sign * 0.1799 / 2, abs=5e-5)  # foot_distance
+        np.testing.assert_allclose(rot, np.eye(3), atol=2e-4)  # level
+    # The Bit-Bots' walk-ready pose (FACTS, left, deg): HipPitch 16.9, Knee 63.8, AnklePitch −31.9,
+    # HipRoll 5.8, AnkleRoll 5.8; ours is the same crouch at our stance height (signs and ±6°).
+    real = {"LHipPitch": 16.9, "LKnee": 63.8, "LAnklePitch": -31.9, "LHipRoll": 5.8, "LAnkleRoll": 5.8}
+    for name, degrees in real.items():
+        assert math.degrees(q[name]) == pytest.approx(degrees, abs=6.0), name
+        mirror = "R" + name[1:]
+        assert q[mirror] == pytest.approx(-q[name], abs=0.01)
 
 
 def test_joint_limits_contain_the_walking_workspace(spec):
-    """Feet flat on the ground, trunk 0.36-0.43 m above the sole and pitched -0.2..0.3 rad,
-    steps up to 0.156 m forward/back, 0.103 m sideways, ±0.764 rad yaw, flying foot lifted up to
-    0.1 m: numerical IK (on the independent FK) must land inside the joint limits."""
+    """Feet level on the ground, trunk 0.37-0.42 m above the sole and pitched -0.1..0.3 rad (the
+    Bit-Bots' gaits: trunk_height 0.38-0.395, trunk_pitch 0.11-0.2), steps up to 0.156 m
+    forward/back, 0.103 m sideways, ±0.764 rad yaw, flying foot lifted up to 0.09 m: every
+    reachable pose (IK checked against the URDF table above) is inside the real joint limits.
+    (A 0.36 m trunk pitched 0.3 rad with the foot lifted 0.1 m needs more than the real ankle's
+    1.42 rad.)"""
+    from footsim.walk.ik import leg_ik
+
     rng = np.random.default_rng(7)
-    legs = spec.leg_geometry
     checked = 0
     for side, sign in (("left", 1.0), ("right", -1.0)):
-        guess = np.array(leg_q(spec, spec.walk_ready, side))
-        lows = np.array([spec.joint(n).lower for n in spec.leg_joint_names(side)])
-        highs = np.array([spec.joint(n).upper for n in spec.leg_joint_names(side)])
         for _ in range(60):
-            height = rng.uniform(0.36, 0.43)
-            trunk_pitch = rng.uniform(-0.2, 0.3)
-            lift = rng.choice([0.0, rng.uniform(0.0, 0.1)])
-            foot_x = rng.uniform(-0.156, 0.156) * 0.6  # half a step each way + trunk offsets
-            foot_y = sign * rng.uniform(0.06, 0.09 + 0.103 * 0.6)
-            foot_yaw = rng.uniform(-0.764, 0.764) * 0.6
-            # Foot pose in the trunk frame: rotate the world-frame foot pose by -trunk_pitch.
-            world_pos = np.array([foot_x, foot_y, -(height - lift)])
-            world_rot = _rot("z", foot_yaw)
+            height, trunk_pitch = rng.uniform(0.37, 0.42), rng.uniform(-0.1, 0.3)
+            lift = rng.choice([0.0, rng.uniform(0.0, 0.09)])
+            world_pos = np.array(
+                [rng.uniform(-0.156, 0.156) * 0.6, sign * rng.uniform(0.06, 0.09 + 0.103 * 0.6), -(height - lift)]
+            )
+            world_rot = _rot("z", rng.uniform(-0.764, 0.764) * 0.6)
             trunk_rot = _rot("y", trunk_pitch)
-            # Poses beyond the leg's reach (trunk high, foot far) are the walk's problem, not
-            # the limits': skip them (the hip pitch point is on the yaw axis, so yaw-free).
-            ankle = trunk_rot.T @ (world_pos + world_rot @ [0, 0, legs.ankle_to_sole])
-            hip = np.array([0.0, sign * legs.hip_offset_y, -legs.hip_offset_z])
-            if np.linalg.norm(ankle - hip) > 0.995 * (legs.thigh + legs.shin):
-                continue
+            target_rot = trunk_rot.T @ world_rot
+            rpy = [math.atan2(target_rot[2, 1], target_rot[2, 2]), -math.asin(target_rot[2, 0]), 0.0]
+            rpy[2] = math.atan2(target_rot[1, 0], target_rot[0, 0])
+            q6, reachable = leg_ik((trunk_rot.T @ world_pos)[None], np.array([rpy]), side, spec.leg_geometry)
+            if not reachable[0]:
+                continue  # beyond the leg's reach: the walk's problem, not the limits'
             checked += 1
-            q6 = _solve_leg(spec, side, trunk_rot.T @ world_pos, trunk_rot.T @ world_rot, guess)
-            assert np.all(q6 >= lows) and np.all(q6 <= highs), (side, q6.round(3), lows, highs)
-    assert checked >= 80  # most of the 120 samples are reachable
+            limits = spec.leg_limits(side)
+            assert np.all(q6[0] >= limits[:, 0]) and np.all(q6[0] <= limits[:, 1]), (side, q6.round(3))
+    assert checked >= 80
 
 
 def test_bad_specs_are_rejected():
@@ -326,10 +350,15 @@ def test_mujoco_compiles_the_mjcf_with_servos(spec, mj):
         model.site(name)
     for sensor in ("imu_gyro", "imu_accel", "imu_quat"):
         model.sensor(sensor)
-    # Sole plate: the spec's foot size, bottom face on the sole frame.
+    # Sole plate (FACTS): 0.154 × 0.106 m, bottom 13.4 mm above the sole frame (0.0529 below the
+    # foot frame); the cleat spheres' bottoms 2.9 mm above it.
     plate = model.geom("l_foot_collision0")
-    assert 2 * plate.size[:2] == pytest.approx([0.154, 0.106])
-    assert plate.pos[2] - plate.size[2] == pytest.approx(-0.0529)
+    assert sorted(2 * plate.size[:2]) == pytest.approx([0.106, 0.154])
+    assert plate.pos[2] - plate.size[2] == pytest.approx(-0.0529 + 0.0134)
+    foot = model.body("l_foot").id
+    spheres = [g for g in range(model.ngeom) if model.geom_bodyid[g] == foot and model.geom_type[g] == 2]
+    assert len(spheres) == 4  # mjGEOM_SPHERE
+    assert [model.geom_pos[g][2] - model.geom_size[g][0] for g in spheres] == pytest.approx([-0.0529 + 0.0029] * 4)
 
 
 def test_dm_control_parses_the_mjcf(mj):
@@ -340,57 +369,6 @@ def test_dm_control_parses_the_mjcf(mj):
     physics = dm_mjcf.Physics.from_mjcf_model(root)
     assert physics.model.nu == 20
     physics.step()
-
-
-def test_mujoco_sole_matches_hand_kinematics(spec, mj):
-    legs = spec.leg_geometry
-    total = legs.hip_offset_z + legs.thigh + legs.shin + legs.ankle_to_sole
-    # By hand: straight legs; thigh swung 90° forward; hip yaw 90° (hip roll axis -> -y... the
-    # leg still hangs straight below the hip).
-    cases = [
-        ({}, "left", [0.0, 0.055, -total]),
-        ({}, "right", [0.0, -0.055, -total]),
-        ({"LHipPitch": -math.pi / 2}, "left", [legs.thigh + legs.shin + legs.ankle_to_sole, 0.055, -legs.hip_offset_z]),
-        (
-            {"RHipRoll": -0.5},
-            "right",
-            [
-                0.0,
-                -0.055 - (total - legs.hip_offset_z) * math.sin(0.5),
-                -legs.hip_offset_z - (total - legs.hip_offset_z) * math.cos(0.5),
-            ],
-        ),
-        ({"LKnee": math.pi / 2}, "left", [-(legs.shin + legs.ankle_to_sole), 0.055, -legs.hip_offset_z - legs.thigh]),
-    ]
-    for q, side, expected in cases:
-        pos, _ = mujoco_sole(mj, spec, q, side)
-        np.testing.assert_allclose(pos, expected, atol=1e-9, err_msg=str(q))
-    # Random configurations against the independent chain (position and orientation).
-    for q in random_configs(spec, 10, seed=1) + [spec.walk_ready]:
-        for side in ("left", "right"):
-            pos, rot = mujoco_sole(mj, spec, q, side)
-            ref_pos, ref_rot = leg_fk(legs, side, leg_q(spec, q, side))
-            np.testing.assert_allclose(pos, ref_pos, atol=1e-9)
-            np.testing.assert_allclose(rot, ref_rot, atol=1e-9)
-
-
-def test_walk_engine_ik_drives_the_mujoco_sole_where_asked(spec, mj):
-    """The walk package's IK, with this spec's leg geometry and limits, lands MuJoCo's sole site
-    on the target: the IK and the generated model share one convention."""
-    ik = pytest.importorskip("footsim.walk.ik")
-    if not hasattr(ik, "leg_ik"):
-        pytest.skip("footsim.walk.ik has no leg_ik yet")
-    rng = np.random.default_rng(11)
-    for side, sign in (("left", 1.0), ("right", -1.0)):
-        for _ in range(10):
-            target = np.array([rng.uniform(-0.08, 0.08), sign * rng.uniform(0.06, 0.13), -rng.uniform(0.33, 0.40)])
-            rpy = np.array([0.0, 0.0, rng.uniform(-0.38, 0.38)])
-            q6, reachable = ik.leg_ik(target[None], rpy[None], side, spec.leg_geometry, spec.leg_limits(side))
-            assert reachable[0]
-            q = dict(zip(spec.leg_joint_names(side), q6[0]))
-            pos, rot = mujoco_sole(mj, spec, q, side)
-            np.testing.assert_allclose(pos, target, atol=1e-6)
-            np.testing.assert_allclose(rot, _rot("z", rpy[2]), atol=1e-6)
 
 
 def test_mjcf_robot_stands_in_walk_ready_pose(mj):

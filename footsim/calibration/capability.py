@@ -116,10 +116,11 @@ def sole_poses(backend: Backend) -> FeetState:
     robot = backend.robot  # type: ignore[attr-defined]
     poses = []
     for side in ("left", "right"):
-        link, offset = robot.sole(side)
+        link, origin = robot.sole(side)
         position, rotation = _link_frame(sim, link)
-        sole = position + rotation @ np.asarray(offset, dtype=float)
-        poses.append(Pose2D(float(sole[0]), float(sole[1]), math.atan2(rotation[1, 0], rotation[0, 0])))
+        sole = position + rotation @ np.asarray(origin.xyz)
+        sole_rotation = rotation @ origin.rotation
+        poses.append(Pose2D(float(sole[0]), float(sole[1]), math.atan2(sole_rotation[1, 0], sole_rotation[0, 0])))
     return FeetState(poses[0], poses[1])
 
 

@@ -194,8 +194,10 @@ def build_mjcf(
 
     add_children(base, spec.base_link)
 
-    for side_name, (foot, offset) in spec.soles.items():
-        mj.body(foot).add_site(name=sole_site(side_name), pos=list(offset), size=[0.005, 0.0, 0.0])
+    for side_name, (foot, origin) in spec.soles.items():
+        mj.body(foot).add_site(
+            name=sole_site(side_name), pos=list(origin.xyz), quat=_quat(origin.rotation), size=[0.005, 0.0, 0.0]
+        )
 
     for joint in (j for j in spec.joints if j.name not in rigid):
         actuator = mj.add_actuator(name=joint.name, target=joint.name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
@@ -219,7 +221,7 @@ def build_mjcf(
     model = mj.compile()
     qpos = model.qpos0.copy()
     ctrl = np.zeros(model.nu)
-    sole_height = -spec.sole_transform(Side.LEFT, spec.walk_ready)[2, 3]
+    sole_height = -spec.sole_transform(Side.LEFT, spec.walk_ready)[2, 3] - spec.sole_clearance(Side.LEFT)
     free_adr = model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, FREE_JOINT)]
     qpos[free_adr : free_adr + 7] = [0.0, 0.0, sole_height, 1.0, 0.0, 0.0, 0.0]
     for name in (n for n in spec.joint_names if n not in rigid):

@@ -6,8 +6,9 @@ from collections.abc import Callable, Mapping
 
 from footsim.robots.spec import RobotSpec
 from footsim.robots.wolfgang import wolfgang
+from footsim.robots.wolfgang_simplified import wolfgang_simplified
 
-ROBOTS = {"wolfgang": wolfgang}
+ROBOTS = {"wolfgang": wolfgang, "wolfgang_simplified": wolfgang_simplified}
 
 
 def get_robot(name: str) -> RobotSpec:

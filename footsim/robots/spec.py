@@ -22,6 +22,7 @@ Conventions (shared with ``footsim.walk.ik``):
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -29,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from footsim.walk.footsteps import Side, StepLimits
-from footsim.walk.ik import LEG_JOINTS, LegGeometry
+from footsim.walk.ik import LEG_JOINTS, LegChain, LegGeometry, leg_fk, leg_ik
 
 Vec3 = tuple[float, float, float]
 
@@ -185,6 +186,20 @@ class Inertial:
         return not any(self.inertia[3:])
 
 
+def combined_inertial(parts) -> Inertial:
+    """One rigid body's :class:`Inertial` from ``parts``: ``(Inertial, pose)`` pairs, each pose
+    (4x4) placing the part's frame in the combined body's frame (parallel-axis theorem)."""
+    mass = sum(part.mass for part, _ in parts)
+    coms = [pose[:3, :3] @ np.asarray(part.com) + pose[:3, 3] for part, pose in parts]
+    com = sum(part.mass * c for (part, _), c in zip(parts, coms)) / mass
+    total = np.zeros((3, 3))
+    for (part, pose), c in zip(parts, coms):
+        R, d = pose[:3, :3], c - com
+        total += R @ part.matrix @ R.T + part.mass * (float(d @ d) * np.eye(3) - np.outer(d, d))
+    inertia = (total[0, 0], total[1, 1], total[2, 2], total[0, 1], total[0, 2], total[1, 2])
+    return Inertial(float(mass), tuple(float(v) for v in com), tuple(float(v) for v in inertia))  # type: ignore[arg-type]
+
+
 def box_inertia(mass: float, size: Vec3) -> tuple[float, float, float]:
     """Principal moments of a solid box of full extents ``size``."""
     x, y, z = size
@@ -334,9 +349,9 @@ class RobotSpec:
     base_link: str = "torso"
     links: tuple[Link, ...] = ()
     joints: tuple[Joint, ...] = ()
-    # Sole frame per side: (foot link, sole position in that link's frame); the sole frame is
-    # parallel to the foot link frame.
-    soles: Mapping[str, tuple[str, Vec3]] = field(default_factory=dict)
+    # Sole frame per side: (foot link, sole pose in that link's frame: an Origin, or a position
+    # for a sole frame parallel to the foot link frame).  The walk engine's IK targets it.
+    soles: Mapping[str, tuple[str, Origin]] = field(default_factory=dict)
     walk_ready: Mapping[str, float] = field(default_factory=dict)  # joint name -> angle [rad]
 
     def __post_init__(self) -> None:
@@ -346,7 +361,14 @@ class RobotSpec:
             _positive(getattr(self, attr), f"RobotSpec.{attr}")
         object.__setattr__(self, "links", tuple(self.links))
         object.__setattr__(self, "joints", tuple(self.joints))
-        object.__setattr__(self, "soles", {str(k): (v[0], _vec3(v[1], f"sole {k}")) for k, v in self.soles.items()})
+        object.__setattr__(
+            self,
+            "soles",
+            {
+                str(k): (v[0], v[1] if isinstance(v[1], Origin) else Origin(_vec3(v[1], f"sole {k}")))
+                for k, v in self.soles.items()
+            },
+        )
         object.__setattr__(self, "walk_ready", {str(k): float(v) for k, v in self.walk_ready.items()})
         if self.links or self.joints:
             self._validate_tree()
@@ -466,8 +488,8 @@ class RobotSpec:
         ``footsim.walk.ik.leg_ik(..., limits=)`` takes)."""
         return np.array([self.joint(n).range for n in self.leg_joint_names(side)])
 
-    def sole(self, side: Side | str) -> tuple[str, Vec3]:
-        """(foot link, sole position in the foot link frame)."""
+    def sole(self, side: Side | str) -> tuple[str, Origin]:
+        """(foot link, sole frame pose in the foot link frame)."""
         key = _side(side).value
         if key not in self.soles:
             raise ValueError(f"robot {self.name!r} has no sole frame for the {key} foot")
@@ -507,56 +529,128 @@ class RobotSpec:
 
     def sole_transform(self, side: Side | str, q: Mapping[str, float] | None = None) -> np.ndarray:
         """Pose (4x4) of the sole frame of ``side`` in the base frame."""
-        foot, offset = self.sole(side)
-        sole = np.eye(4)
-        sole[:3, 3] = offset
-        return self.link_transforms(q)[foot] @ sole
+        foot, origin = self.sole(side)
+        return self.link_transforms(q)[foot] @ origin.matrix
 
-    @property
+    def sole_clearance(self, side: Side | str) -> float:
+        """Height of the foot's lowest collision point above its sole frame, with the sole level
+        (0 for a sole frame on the bottom face of a flat plate; Wolfgang's sole frame lies below
+        the cleat tips).  The backends place a standing robot with this point on the floor."""
+        foot, origin = self.sole(side)
+        to_sole = np.linalg.inv(origin.matrix)
+        lowest = math.inf
+        for shape in self.link(foot).shapes:
+            pose = to_sole @ shape.origin.matrix
+            lowest = min(lowest, _lowest_point(shape, pose))
+        if not math.isfinite(lowest):
+            raise ValueError(f"robot {self.name!r}: foot link {foot!r} has no collision shape")
+        return float(lowest)
+
+    @functools.cached_property
     def leg_geometry(self) -> LegGeometry:
-        """The leg chain lengths the analytic IK uses, read from the left leg's joints.
+        """The legs' kinematics for the analytic IK, read from the joints (see
+        :mod:`footsim.walk.ik`): axis points, segment lengths, the sole's offset from the ankle
+        centre and each joint's sign and zero in the IK's chain convention.
 
-        Raises ``ValueError`` if the legs do not have the pure shape the IK assumes (intersecting
-        hip roll/pitch and ankle pitch/roll axes, straight vertical segments, mirrored legs).
+        Raises ``ValueError`` if a leg is not a yaw–roll–pitch–pitch–pitch–roll chain with
+        intersecting hip roll/pitch and ankle pitch/roll axes (the check: the chain's FK must
+        reproduce :meth:`sole_transform` at random angles to ``_CHAIN_TOLERANCE``).
         """
         self._require_model()
-        dims = {}
-        for side in (Side.LEFT, Side.RIGHT):
-            yaw, roll, pitch, knee, ankle_pitch, ankle_roll = (self.joint(n) for n in self.leg_joint_names(side))
-            expected_axes = ((0, 0, 1), (1, 0, 0), (0, 1, 0), (0, 1, 0), (0, 1, 0), (1, 0, 0))
-            for joint, axis in zip((yaw, roll, pitch, knee, ankle_pitch, ankle_roll), expected_axes):
-                if not np.allclose(joint.axis, axis) or not np.allclose(joint.origin.rpy, 0.0):
-                    raise ValueError(f"joint {joint.name!r} does not follow the leg axis convention")
-            foot, sole = self.sole(side)
-            if foot != ankle_roll.child:
-                raise ValueError(f"the {side.value} sole must be on link {ankle_roll.child!r}, not {foot!r}")
-            segments = (
-                roll.origin.xyz,
-                pitch.origin.xyz,
-                knee.origin.xyz,
-                ankle_pitch.origin.xyz,
-                ankle_roll.origin.xyz,
-                sole,
-            )
-            if (
-                any(abs(s[0]) > 1e-9 or abs(s[1]) > 1e-9 for s in segments)
-                or abs(yaw.origin.xyz[0]) > 1e-9
-                or abs(yaw.origin.xyz[2]) > 1e-9
-            ):
-                raise ValueError(f"the {side.value} leg chain is not the straight chain LegGeometry describes")
-            if abs(pitch.origin.xyz[2]) > 1e-9 or abs(ankle_roll.origin.xyz[2]) > 1e-9:
-                raise ValueError(f"the {side.value} leg's hip/ankle axes must intersect")
-            dims[side] = (
-                yaw.origin.xyz[1] * side.sign,
-                -roll.origin.xyz[2],
-                -knee.origin.xyz[2],
-                -ankle_pitch.origin.xyz[2],
-                -sole[2],
-            )
-        if not np.allclose(dims[Side.LEFT], dims[Side.RIGHT]):
-            raise ValueError("the legs are not mirror images of each other")
-        hip_y, hip_z, thigh, shin, ankle = dims[Side.LEFT]
-        return LegGeometry(hip_offset_y=hip_y, hip_offset_z=hip_z, thigh=thigh, shin=shin, ankle_to_sole=ankle)
+        return LegGeometry(self._leg_chain(Side.LEFT), self._leg_chain(Side.RIGHT))
+
+    def _leg_chain(self, side: Side) -> LegChain:
+        names = self.leg_joint_names(side)
+        frames = self.link_transforms()
+        axes, points = [], []
+        for name in names:
+            joint = self.joint(name)
+            frame = frames[joint.child]  # the joint frame in the zero pose
+            axes.append(frame[:3, :3] @ np.asarray(joint.axis))
+            points.append(frame[:3, 3])
+        if self.sole(side)[0] != self.joint(names[-1]).child:
+            raise ValueError(f"the {side.value} sole must be on link {self.joint(names[-1]).child!r}")
+        sole = self.sole_transform(side)
+        sole_rot, sole_pos = sole[:3, :3], sole[:3, 3]
+        foot_pitch = math.atan2(sole_rot[0, 2], sole_rot[0, 0])
+        if not np.allclose(sole_rot, _axis_angle(np.array([0.0, 1.0, 0.0]), foot_pitch), atol=_CHAIN_TOLERANCE):
+            raise ValueError(f"the {side.value} sole frame must be level up to a pitch in the zero pose")
+        expected = (
+            np.array([0.0, 0.0, 1.0]),
+            np.array([1.0, 0.0, 0.0]),
+            np.array([0.0, 1.0, 0.0]),
+            np.array([0.0, 1.0, 0.0]),
+            np.array([0.0, 1.0, 0.0]),
+            sole_rot[:, 0],  # the ankle roll turns about the foot's x axis
+        )
+        signs = []
+        for name, axis, want in zip(names, axes, expected):
+            dot = float(axis @ want)
+            if abs(abs(dot) - 1.0) > _CHAIN_TOLERANCE:
+                raise ValueError(
+                    f"joint {name!r}: axis {np.round(axis, 4).tolist()} is not along ±{np.round(want, 4).tolist()} "
+                    "in the zero pose; the analytic IK needs a yaw–roll–pitch–pitch–pitch–roll leg"
+                )
+            signs.append(1.0 if dot > 0 else -1.0)
+        hip = _intersection(points[1], axes[1], points[2], axes[2], f"the {side.value} hip roll and pitch axes")
+        ankle = _intersection(points[4], axes[4], points[5], axes[5], f"the {side.value} ankle pitch and roll axes")
+        knee = points[3]
+        thigh, shin = (knee - hip)[[0, 2]], (ankle - knee)[[0, 2]]
+        hip_pitch0 = math.atan2(-thigh[0], -thigh[1])
+        knee0 = math.atan2(-shin[0], -shin[1]) - hip_pitch0
+        chain = LegChain(
+            hip_yaw=_vec3(points[0], "hip yaw point"),
+            hip_centre=_vec3(hip - points[0], "hip centre"),
+            lateral=float(ankle[1] - hip[1]),
+            thigh=float(np.linalg.norm(thigh)),
+            shin=float(np.linalg.norm(shin)),
+            ankle=_vec3(sole_rot.T @ (ankle - sole_pos), "ankle centre"),
+            signs=tuple(signs),  # type: ignore[arg-type]
+            zeros=(0.0, 0.0, hip_pitch0, knee0, foot_pitch - hip_pitch0 - knee0, 0.0),
+        )
+        rng = np.random.default_rng(0)
+        limits = self.leg_limits(side)
+        for q in rng.uniform(limits[:, 0], limits[:, 1], (8, 6)):
+            pos, rot = leg_fk(q[None], side, LegGeometry(chain, chain))
+            want_pose = self.sole_transform(side, dict(zip(names, q)))
+            error = max(np.abs(pos[0] - want_pose[:3, 3]).max(), np.abs(rot[0] - want_pose[:3, :3]).max())
+            if error > _CHAIN_TOLERANCE:
+                raise ValueError(
+                    f"the {side.value} leg is not the chain the analytic IK solves (FK differs by {error:.2e})"
+                )
+        return chain
+
+
+# How far a leg may be from the ideal chain [m, and rad for directions]: URDFs round their angles
+# (Wolfgang's 1.5708 for pi/2 tilts axes by ~4e-6 rad), which moves the sole by micrometres.
+_CHAIN_TOLERANCE = 2e-5
+
+
+def _intersection(p1: np.ndarray, a1: np.ndarray, p2: np.ndarray, a2: np.ndarray, what: str) -> np.ndarray:
+    """The point where two (non-parallel) lines meet; ``ValueError`` if they miss by > 1 µm."""
+    n = np.cross(a1, a2)
+    t1 = np.dot(np.cross(p2 - p1, a2), n) / np.dot(n, n)
+    t2 = np.dot(np.cross(p2 - p1, a1), n) / np.dot(n, n)
+    c1, c2 = p1 + t1 * a1, p2 + t2 * a2
+    if np.linalg.norm(c1 - c2) > _CHAIN_TOLERANCE:
+        raise ValueError(f"{what} do not intersect (they miss by {np.linalg.norm(c1 - c2):.2e} m)")
+    return (c1 + c2) / 2.0
+
+
+def _lowest_point(shape: Shape, pose: np.ndarray) -> float:
+    """Lowest z of ``shape`` placed at ``pose`` (4x4) in a frame with z up."""
+    R, centre = pose[:3, :3], pose[:3, 3]
+    if isinstance(shape, Sphere):
+        return float(centre[2] - shape.radius)
+    if isinstance(shape, Box):
+        half = np.array(shape.size) / 2.0
+        return float(centre[2] - np.abs(R[2, :]) @ half)
+    # Capsule / cylinder along local z: the lower end of the axis, then the radius (the capsule's
+    # cap; for a cylinder the rim's drop is radius·|sin(tilt)|).
+    axis_z = abs(R[2, 2]) * shape.length / 2.0
+    if isinstance(shape, Capsule):
+        return float(centre[2] - axis_z - shape.radius)
+    return float(centre[2] - axis_z - shape.radius * math.sqrt(max(0.0, 1.0 - R[2, 2] ** 2)))
 
 
 def _axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
@@ -567,33 +661,14 @@ def _axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
 
 
 def stance_pose(legs: LegGeometry, trunk_height: float, foot_distance: float) -> dict[str, float]:
-    """Leg angles for standing with the trunk upright ``trunk_height`` above the soles, the feet
-    flat, ``foot_distance`` apart, straight below the hip yaw axes in x.
-
-    Closed-form two-link solution in the rolled leg plane: the hip roll tilts the leg outward
-    so the sole lands at ±foot_distance/2, the knee bends to shorten the hip-pitch→ankle-pitch
-    distance, hip and ankle pitch keep the ankle under the hip and the foot flat.
-    """
-    lateral = foot_distance / 2.0 - legs.hip_offset_y
-    vertical = trunk_height - legs.hip_offset_z - legs.ankle_to_sole
-    roll = math.atan2(lateral, vertical)
-    reach = math.hypot(lateral, vertical)  # hip-pitch axis to ankle-pitch axis
-    cos_knee = (reach**2 - legs.thigh**2 - legs.shin**2) / (2 * legs.thigh * legs.shin)
-    if not -1.0 <= cos_knee <= 1.0:
-        raise ValueError(f"trunk_height {trunk_height} / foot_distance {foot_distance} is out of the leg's reach")
-    knee = math.acos(cos_knee)
-    hip_pitch = -math.atan2(legs.shin * math.sin(knee), legs.thigh + legs.shin * math.cos(knee))
-    angles = {
-        "HipYaw": 0.0,
-        "HipRoll": roll,
-        "HipPitch": hip_pitch,
-        "Knee": knee,
-        "AnklePitch": -(hip_pitch + knee),
-        "AnkleRoll": -roll,
-    }
+    """Robot leg angles for standing with the trunk upright ``trunk_height`` above the soles, the
+    soles level, ``foot_distance`` apart and straight below the base origin in x (the walk
+    engine's neutral stance, solved by its IK)."""
     pose = {}
     for side in (Side.LEFT, Side.RIGHT):
-        for joint, angle in angles.items():
-            mirrored = side is Side.RIGHT and joint in MIRRORED_JOINTS
-            pose[side_prefix(side) + joint] = (-angle if mirrored else angle) + 0.0  # no -0.0
+        target = np.array([[0.0, side.sign * foot_distance / 2.0, -trunk_height]])
+        q, reachable = leg_ik(target, np.zeros((1, 3)), side, legs)
+        if not reachable[0]:
+            raise ValueError(f"trunk_height {trunk_height} / foot_distance {foot_distance} is out of the leg's reach")
+        pose.update({side_prefix(side) + joint: float(angle) + 0.0 for joint, angle in zip(LEG_JOINTS, q[0])})
     return pose

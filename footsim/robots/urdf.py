@@ -131,7 +131,7 @@ def build_urdf(spec: RobotSpec, rigid_upper_body: bool = False) -> ET.Element:
     for side in (Side.LEFT, Side.RIGHT):
         if side.value not in spec.soles:
             continue
-        foot, offset = spec.sole(side)
+        foot, origin = spec.sole(side)
         name = sole_frame_name(side)
         sole = ET.SubElement(robot, "link", name=name)
         inertial = ET.SubElement(sole, "inertial")
@@ -141,7 +141,7 @@ def build_urdf(spec: RobotSpec, rigid_upper_body: bool = False) -> ET.Element:
         frame_joint = ET.SubElement(robot, "joint", name=f"{name}_frame", type="fixed")
         ET.SubElement(frame_joint, "parent", link=foot)
         ET.SubElement(frame_joint, "child", link=name)
-        _origin(frame_joint, Origin(offset))
+        _origin(frame_joint, origin)
     if rigid_upper_body:
         _weld_upper_body(robot, spec)
     return robot

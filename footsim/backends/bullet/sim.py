@@ -491,11 +491,12 @@ class PybulletSim(PhysicsSim):
         would put the robot on its heels, where Bullet's rolling friction holds it (measured: one
         contact point per foot, feet 0.077 rad toe-up, trunk upright instead of leaning).  The
         left sole's roll and pitch in the base frame (the spec's kinematics) are undone, its yaw
-        kept, and the robot lowered so the lower sole touches the floor."""
+        kept, and the robot lowered so the lower foot's lowest point touches the floor."""
         soles = [self.spec.sole_transform(side, joint_positions) for side in ("left", "right")]
         rotation = levelling_rotation(soles[0][:3, :3])
         lowest = min(float((rotation @ t[:3, 3])[2]) for t in soles)
-        return np.array([base_position[0], base_position[1], -lowest]), rotation
+        clearance = self.spec.sole_clearance("left")
+        return np.array([base_position[0], base_position[1], -lowest - clearance]), rotation
 
     def read_state(self, velocity: bool = False) -> None:
         base, c, body = self._base, self.client, self.robot_id

@@ -254,7 +254,7 @@ class DmControlSim(MujocoEngineSim):
         root[3:] = levelling_quat(self._soles.xmat[0])
         self._root.qpos = root
         physics.forward()
-        root[2] -= float(self._soles.xpos[:, 2].min())  # sole sites are on the bottom faces
+        root[2] -= float(self._soles.xpos[:, 2].min()) + self.robot.sole_clearance("left")  # lowest point on the floor
         self._root.qpos = root
         physics.forward()
 

@@ -178,12 +178,12 @@ class MujocoSim(MujocoEngineSim):
         d.qpos[self._free_q + 3 : self._free_q + 7] = levelling_quat(d.site_xmat[self._sole_sites[0]])
         mujoco.mj_kinematics(m, d)
         lowest = min(self._sole_height(s) for s in ("l_sole", "r_sole"))
-        d.qpos[self._free_q + 2] -= lowest
+        d.qpos[self._free_q + 2] -= lowest + self.robot.sole_clearance("left")  # the feet's lowest points on the floor
         mujoco.mj_forward(m, d)
 
     def _sole_height(self, site: str) -> float:
         sid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_SITE, site)
-        return float(self.data.site_xpos[sid, 2])  # the sole site is on the bottom face
+        return float(self.data.site_xpos[sid, 2])
 
     def advance(self, n_steps: int) -> None:
         self._step(self.model, self.data, n_steps)
