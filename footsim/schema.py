@@ -99,6 +99,9 @@ class PybulletBackendConfig(Physics3DConfig):
 @dataclass
 class RobotConfig:
     name: str = MISSING
+    # Wolfgang-OP's option (footsim.robots.wolfgang): mass [kg] added at the torso's COM (the real
+    # robot with cables ≈ +1.4 kg; the Bit-Bots' MuJoCo model +1.0); null = the URDF's 6.12 kg.
+    torso_extra_mass: Optional[float] = None
 
 
 @dataclass

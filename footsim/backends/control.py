@@ -265,8 +265,9 @@ class TrunkStabilizer:
 
     Each control tick the error between the measured fused roll/pitch of the base and the
     engine's planned trunk roll/pitch is multiplied by a gain [rad/rad] and added to the hip
-    and ankle roll/pitch targets of both legs (:func:`corrected`).  With the legs' +x (roll) and
-    +y (pitch) joint axes, a positive hip gain turns the trunk back towards its planned
+    and ankle roll/pitch targets of both legs (:func:`corrected`).  The gains are in the leg IK's
+    chain convention (``footsim.walk.ik``; the driver multiplies them by each joint's sign): with
+    the legs' +x (roll) and +y (pitch) axes, a positive hip gain turns the trunk back towards its planned
     orientation relative to the legs; an ankle gain tilts the soles against the lean.  All gains
     0 = open loop (the engine's targets untouched, no base reads).
     """

@@ -326,6 +326,9 @@ class Physics3DBackend(Backend):
         self.engine = QuinticWalk(
             walk, self.geometry, robot.leg_geometry, self.control_dt, joint_limits=self._joint_limits
         )
+        # The stabilizer's gains act on the IK's chain axes (hip roll +x, pitch +y, ...): the robot's
+        # joints turn the other way where their sign is -1.
+        self._stabilizer_gains = self.stabilizer.gains * robot.leg_geometry.signs
         self.sim.build(robot, self.physics_dt)
         self.scene: Scene | None = None
         # Randomization state (see apply_randomization): the walk actually used, latency, pushes.
@@ -453,7 +456,7 @@ class Physics3DBackend(Backend):
         schedule, and the physics of one control period."""
         s = self.sim.state
         targets, trunk = trajectory.joint_targets, trajectory.trunk_in_support  # roll, pitch: as in .trunk
-        gains = self.stabilizer.gains if (stabilized and self.stabilizer.active) else None
+        gains = self._stabilizer_gains if (stabilized and self.stabilizer.active) else None
         delay, slot = self._delay_line(), self._delay_slot
         quat, w_last, frame, feed_forward, command, leg_ids = (
             s.quat,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Callable, Mapping
 
 from footsim.robots.spec import RobotSpec
@@ -11,11 +12,23 @@ from footsim.robots.wolfgang_simplified import wolfgang_simplified
 ROBOTS = {"wolfgang": wolfgang, "wolfgang_simplified": wolfgang_simplified}
 
 
-def get_robot(name: str) -> RobotSpec:
+def get_robot(name: str, **options) -> RobotSpec:
+    """The spec of robot ``name``; ``options`` are its builder's keyword arguments (e.g. Wolfgang's
+    ``torso_extra_mass``), checked against the builder's signature."""
     try:
-        return ROBOTS[name]()
+        build = ROBOTS[name]
     except (KeyError, TypeError):
         raise ValueError(f"unknown robot {name!r}; valid robots: {sorted(ROBOTS)}") from None
+    valid = robot_options(name)
+    unknown = sorted(set(options) - set(valid))
+    if unknown:
+        raise ValueError(f"robot {name!r}: unknown option(s) {unknown}; valid: {valid}")
+    return build(**options)
+
+
+def robot_options(name: str) -> list[str]:
+    """The keyword options robot ``name``'s builder takes."""
+    return [p for p in inspect.signature(ROBOTS[name]).parameters if p != "self"]
 
 
 def register_robot(name: str, build: Callable[[], RobotSpec]) -> None:
@@ -25,13 +38,15 @@ def register_robot(name: str, build: Callable[[], RobotSpec]) -> None:
     ROBOTS[name] = build
 
 
-CONFIG_KEYS = ("name",)
+CONFIG_KEYS = ("name",)  # plus the robot's own builder options (robot_options)
 
 
 def robot_from_config(cfg: Mapping | str) -> RobotSpec:
-    """The spec named by a Hydra ``robot`` group entry (``{name: wolfgang}``) or a bare name.
+    """The spec named by a Hydra ``robot`` group entry (``{name: wolfgang, torso_extra_mass: 1.0}``)
+    or a bare name.
 
-    Any key other than ``name`` is rejected: the robot's numbers live in code, in one place.
+    Keys other than ``name`` are the builder's documented options; anything else is rejected: the
+    robot's numbers live in code, in one place.
     """
     if isinstance(cfg, str):
         return get_robot(cfg)
@@ -40,9 +55,16 @@ def robot_from_config(cfg: Mapping | str) -> RobotSpec:
             cfg = dict(cfg)
         except (TypeError, ValueError):
             raise TypeError(f"robot config must be a mapping or a name, got {type(cfg).__name__}") from None
-    unknown = sorted(set(map(str, cfg)) - set(CONFIG_KEYS))
-    if unknown:
-        raise ValueError(f"unknown robot config key(s) {unknown}; valid keys: {list(CONFIG_KEYS)}")
     if "name" not in cfg:
         raise ValueError(f"robot config needs a 'name' (valid robots: {sorted(ROBOTS)})")
-    return get_robot(cfg["name"])
+    name = cfg["name"]
+    if name not in ROBOTS:
+        raise ValueError(f"unknown robot {name!r}; valid robots: {sorted(ROBOTS)}")
+    # The schema lists every robot's options with null defaults: a null option is not given.
+    options = {str(k): v for k, v in cfg.items() if k != "name" and v is not None}
+    unknown = sorted(set(options) - set(robot_options(name)))
+    if unknown:
+        raise ValueError(
+            f"unknown robot config key(s) {unknown}; valid keys: {list(CONFIG_KEYS) + robot_options(name)}"
+        )
+    return get_robot(name, **options)

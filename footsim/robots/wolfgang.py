@@ -125,9 +125,12 @@ CLEAT_CENTRES = {
 }
 CLEAT_RADIUS, CLEAT_LENGTH, CLEAT_SPHERE_Z = 0.006, 0.010, 0.0089
 
-# Walk-ready arms and head (the Bit-Bots' walkready pose, left side; right mirrored): shoulders
-# pitched 75° so the arms hang slightly back, elbows bent 36°.
-WALK_READY_ARMS = {"LShoulderPitch": 1.309, "RShoulderPitch": -1.309, "LElbow": 0.6283, "RElbow": -0.6283}
+# Walk-ready arms: upper arms hanging straight down, elbows bent 36° (FACTS' walk-ready elbow
+# angle) with the forearms forward.  In this URDF the arm's zero is upper arm down, forearm
+# horizontal (elbow at 90°), so a 36° bend is an elbow angle of -(90° - 36°) on the left.  FACTS'
+# walk-ready ShoulderPitch of 75° would put the upper arms horizontal backwards here; it belongs to
+# an older zero of that joint, so the shoulders stay at 0.
+WALK_READY_ARMS = {"LElbow": -0.9425, "RElbow": 0.9425}
 # The walk engine's neutral stance of walk=bitbots_sim: trunk height and foot distance [m].
 WALK_READY_TRUNK_HEIGHT, WALK_READY_FOOT_DISTANCE = 0.3948, 0.1799
 

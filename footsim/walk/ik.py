@@ -143,6 +143,11 @@ class LegGeometry:
         return self.left.straight_length - self.left.hip_yaw[2]
 
     @property
+    def signs(self) -> np.ndarray:
+        """(12,) robot-joint sign of each chain axis, in :data:`LEG_JOINT_NAMES` order."""
+        return np.array(self.left.signs + self.right.signs)
+
+    @property
     def hip_spacing(self) -> float:
         """Lateral distance between the two hip-yaw axes."""
         return self.left.hip_yaw[1] - self.right.hip_yaw[1]

@@ -94,7 +94,6 @@ from footsim.backends.mujoco_family.engine import (  # noqa: E402
     CAMERA_ELEVATION,
     N_CYLINDERS,
     OBSTACLE_BIT,
-    OBSTACLE_HEIGHT,
     OBSTACLE_RGBA,
     PARK,
     MujocoEngineSim,
@@ -102,6 +101,7 @@ from footsim.backends.mujoco_family.engine import (  # noqa: E402
     fatal_warning_ids,
     levelling_quat,
     obstacle_geometry,
+    pool_compile_size,
     require_rendering,
 )
 from footsim.backends.physics3d import Physics3DBackend, SimState, quat_to_matrix  # noqa: E402
@@ -148,18 +148,20 @@ class DmControlSim(MujocoEngineSim):
         com = np.asarray(robot.link(robot.base_link).inertial.com, dtype=float)
         torso.add("camera", name=CAMERA, mode="track", pos=com + offset, xyaxes=xyaxes)
 
+        # One body per obstacle (see footsim.backends.mujoco_family.engine.POOL_MAX_RADIUS).
+        names = [f"obstacle{i}" for i in range(N_CYLINDERS)] + ["ball"]
+        self._pool_bodies = [model.worldbody.add("body", name=name, pos=PARK) for name in names]
         self._pool = [
-            model.worldbody.add(
+            body.add(
                 "geom",
                 name=name,
                 type="sphere" if name == "ball" else "cylinder",
-                size=[0.1] if name == "ball" else [0.1, OBSTACLE_HEIGHT / 2],
-                pos=PARK,
+                size=pool_compile_size(name == "ball")[: 1 if name == "ball" else 2],
                 rgba=BALL_RGBA if name == "ball" else OBSTACLE_RGBA,
                 contype=OBSTACLE_BIT,
                 conaffinity=OBSTACLE_BIT,
             )
-            for name in [f"obstacle{i}" for i in range(N_CYLINDERS)] + ["ball"]
+            for body, name in zip(self._pool_bodies, names)
         ]
         self.mjcf_model = model
         self.physics = physics = mjcf.Physics.from_mjcf_model(model)
@@ -213,7 +215,7 @@ class DmControlSim(MujocoEngineSim):
 
     def _park_all(self) -> None:
         pool = self._pool_bound
-        pool.pos = np.tile(PARK, (len(self._pool), 1))
+        self.physics.bind(self._pool_bodies).pos = np.tile(PARK, (len(self._pool), 1))
         pool.contype = pool.conaffinity = 0
         pool.rgba[:, 3] = 0.0  # invisible
 
@@ -228,9 +230,10 @@ class DmControlSim(MujocoEngineSim):
             placed.append((self._pool[-1], scene.ball, True))
         for geom, obstacle, ball in placed:
             bound = self.physics.bind(geom)
-            bound.size, bound.pos, bound.rbound, bound.aabb = obstacle_geometry(
+            bound.size, pos, bound.rbound, bound.aabb = obstacle_geometry(
                 obstacle.x, obstacle.y, obstacle.r + self.obstacle_inflation, ball
             )
+            self.physics.bind(geom.parent).pos = pos
             bound.contype = bound.conaffinity = OBSTACLE_BIT
             bound.rgba[3] = 1.0
 

@@ -100,8 +100,22 @@ def foot_contact(
     return (4 if rolling_friction is None else 6), [float(f) for f in friction]
 
 
+# Each pool obstacle is the one geom of its own body, welded to the world and moved by its body
+# position: MuJoCo's mid-phase culls with per-body bounding volumes fixed at compile time, so a
+# geom moved inside one body (the world) would be culled against multi-geom bodies (the feet).
+# The pool geoms are compiled at this radius [m], so that volume bounds every obstacle.
+POOL_MAX_RADIUS = 2.0
+
+
+def pool_compile_size(ball: bool) -> list[float]:
+    """Compile-time size of a pool geom: the largest obstacle (see :data:`POOL_MAX_RADIUS`)."""
+    return [POOL_MAX_RADIUS, 0.0, 0.0] if ball else [POOL_MAX_RADIUS, OBSTACLE_HEIGHT / 2, 0.0]
+
+
 def obstacle_geometry(x: float, y: float, r: float, ball: bool):
-    """``(size, pos, rbound, aabb)`` of a pool geom placed as an obstacle cylinder or the ball."""
+    """``(size, body pos, rbound, aabb)`` of a pool geom placed as an obstacle cylinder or the ball."""
+    if not r <= POOL_MAX_RADIUS:
+        raise ValueError(f"obstacle radius {r} m (with the backend's obstacle_inflation) exceeds {POOL_MAX_RADIUS} m")
     if ball:
         return (r, 0.0, 0.0), (x, y, r), r, (0.0, 0.0, 0.0, r, r, r)
     h = OBSTACLE_HEIGHT / 2

@@ -27,7 +27,6 @@ from footsim.backends.mujoco_family.engine import (
     CAMERA_ELEVATION,
     N_CYLINDERS,
     OBSTACLE_BIT,
-    OBSTACLE_HEIGHT,
     OBSTACLE_RGBA,
     PARK,
     MujocoEngineSim,
@@ -36,6 +35,7 @@ from footsim.backends.mujoco_family.engine import (
     levelling_quat,
     mujoco,
     obstacle_geometry,
+    pool_compile_size,
     require_rendering,
 )
 from footsim.backends.physics3d import Physics3DBackend, SimState
@@ -62,13 +62,12 @@ class MujocoSim(MujocoEngineSim):
         spec.visual.global_.offheight = self.max_render_size
         world = spec.worldbody
         names = [f"obstacle{i}" for i in range(N_CYLINDERS)] + ["ball"]
-        for name in names:
+        for name in names:  # one body per obstacle (see footsim.backends.mujoco_family.engine.POOL_MAX_RADIUS)
             is_ball = name == "ball"
-            geom = world.add_geom(
+            geom = world.add_body(name=name, pos=PARK.tolist()).add_geom(
                 name=name,
                 type=mujoco.mjtGeom.mjGEOM_SPHERE if is_ball else mujoco.mjtGeom.mjGEOM_CYLINDER,
-                size=[0.1, 0.0, 0.0] if is_ball else [0.1, OBSTACLE_HEIGHT / 2, 0.0],
-                pos=PARK.tolist(),
+                size=pool_compile_size(is_ball),
                 rgba=BALL_RGBA if is_ball else OBSTACLE_RGBA,
             )
             geom.contype = geom.conaffinity = OBSTACLE_BIT
@@ -130,15 +129,15 @@ class MujocoSim(MujocoEngineSim):
 
     def _place(self, geom: int, x: float, y: float, r: float, ball: bool) -> None:
         m = self.model
-        m.geom_size[geom], m.geom_pos[geom], m.geom_rbound[geom], m.geom_aabb[geom] = obstacle_geometry(
-            x, y, r + self.obstacle_inflation, ball
-        )
+        size, pos, rbound, aabb = obstacle_geometry(x, y, r + self.obstacle_inflation, ball)
+        m.geom_size[geom], m.geom_rbound[geom], m.geom_aabb[geom] = size, rbound, aabb
+        m.body_pos[m.geom_bodyid[geom]] = pos
         m.geom_contype[geom] = m.geom_conaffinity[geom] = OBSTACLE_BIT
         m.geom_rgba[geom, 3] = 1.0
 
     def _park(self, geom: int) -> None:
         m = self.model
-        m.geom_pos[geom] = PARK
+        m.body_pos[m.geom_bodyid[geom]] = PARK
         m.geom_contype[geom] = m.geom_conaffinity[geom] = 0
         m.geom_rgba[geom, 3] = 0.0  # invisible
 
