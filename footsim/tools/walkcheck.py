@@ -1,25 +1,65 @@
-"""``footsim-walkcheck [backends=mujoco,dm_control,pybullet] [out=FILE.md]``: the open-loop walking
-checks on each backend and the consistency report (:func:`footsim.calibration.walkcheck.walkcheck`)."""
+"""``footsim-walkcheck [backends=mujoco,dm_control,pybullet] [walk=W] [robot=R] [convergence=true]
+[backend.KEY=VALUE ...] [walk.KEY=VALUE ...] [robot.KEY=VALUE ...] [out=FILE.md]``: the walking
+checks on each backend and the consistency report (:func:`footsim.calibration.walkcheck.walkcheck`);
+with ``convergence=true`` also the timestep-convergence check per backend
+(:func:`footsim.calibration.walkcheck.timestep_convergence`).  ``backend.KEY=VALUE`` overrides a
+key of every listed 3D backend's config (e.g. ``backend.physics_dt=0.001``)."""
 
 from __future__ import annotations
 
 import sys
 
+import yaml
+
 from footsim.backends.base import require_known_backends
-from footsim.calibration.walkcheck import walkcheck
+from footsim.calibration.walkcheck import timestep_convergence, walkcheck
 from footsim.utils import atomic_write_text, parse_kv_args
+
+COMMAND = "footsim-walkcheck"
+GROUPS = ("backend", "walk", "robot")
+
+
+def split_overrides(argv: list[str]) -> tuple[list[str], dict[str, dict]]:
+    """``(the tool's own key=value arguments, {group: {key: value}})`` from ``group.key=value``
+    arguments (values parsed as YAML, as Hydra does)."""
+    own, groups = [], {g: {} for g in GROUPS}
+    for arg in argv:
+        key, sep, value = arg.partition("=")
+        group, dot, field = key.partition(".")
+        if sep and dot and group in GROUPS and field:
+            groups[group][field] = yaml.safe_load(value)
+        else:
+            own.append(arg)
+    return own, groups
 
 
 def main(argv: list[str] | None = None) -> None:
+    own, overrides = split_overrides(sys.argv[1:] if argv is None else argv)
     args = parse_kv_args(
-        sys.argv[1:] if argv is None else argv,
-        {"backends": "mujoco,dm_control,pybullet", "out": ""},
-        "footsim-walkcheck",
+        own,
+        {"backends": "mujoco,dm_control,pybullet", "walk": "", "robot": "", "convergence": "false", "out": ""},
+        COMMAND,
     )
     backends = [b for b in args["backends"].split(",") if b]
-    require_known_backends(backends, "footsim-walkcheck")
+    require_known_backends(backends, COMMAND)
     backends = [b for b in backends if b != "pymunk"]  # the consistency report adds 2D itself
-    _, table = walkcheck(backends)
+    if args["convergence"] not in ("true", "false"):
+        raise SystemExit(f"{COMMAND}: convergence must be true or false, got {args['convergence']!r}")
+    walk = {**({"name": args["walk"]} if args["walk"] else {}), **overrides["walk"]} or None
+    robot = {**({"name": args["robot"]} if args["robot"] else {}), **overrides["robot"]} or None
+    if isinstance(walk, dict) and set(walk) == {"name"}:
+        walk = walk["name"]
+    try:
+        _, table = walkcheck(backends, walk, robot, overrides["backend"])
+        if args["convergence"] == "true":
+            for name in backends:
+                table += "\n\n" + timestep_convergence(name, walk, robot, overrides["backend"])[1]
+    except ValueError as err:
+        raise SystemExit(f"{COMMAND}: {err}") from None
     print(table)
     if args["out"]:
         atomic_write_text(args["out"], table + "\n")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()
