@@ -22,6 +22,7 @@ Conventions (shared with ``footsim.walk.ik``):
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from collections.abc import Mapping
@@ -88,6 +89,14 @@ class Origin:
     @property
     def rotation(self) -> np.ndarray:
         return rpy_to_matrix(self.rpy)
+
+    @classmethod
+    def from_matrix(cls, matrix: np.ndarray) -> Origin:
+        """The Origin of a homogeneous 4x4 transform (rpy with the pitch in [-pi/2, pi/2])."""
+        R = np.asarray(matrix, dtype=float)
+        pitch = math.asin(max(-1.0, min(1.0, -float(R[2, 0]))))
+        rpy = (math.atan2(R[2, 1], R[2, 2]), pitch, math.atan2(R[1, 0], R[0, 0]))
+        return cls(tuple(float(v) for v in R[:3, 3]), rpy)  # type: ignore[arg-type]
 
     @property
     def matrix(self) -> np.ndarray:
@@ -476,6 +485,39 @@ class RobotSpec:
         """Every joint that is not a leg joint (arms, head), in ``joint_names`` order."""
         legs = set(self.leg_joint_names(Side.LEFT) + self.leg_joint_names(Side.RIGHT))
         return tuple(name for name in self.joint_names if name not in legs)
+
+    def with_rigid_upper_body(self) -> RobotSpec:
+        """This robot with the arms and head merged into the base link at their walk-ready angles:
+        one rigid body (mass, COM and inertia combined exactly, the shapes moved into the base frame)
+        and only the leg joints left.  For loaders whose own merging of fixed links is not exact
+        (PyBullet's ``URDF_MERGE_FIXED_LINKS`` misplaces the COM of rotated children)."""
+        self._require_model()
+        upper_joints = set(self.upper_body_joint_names)
+        frames = self.link_transforms(self.walk_ready)
+        merged = [self.link(self.base_link)]
+        pending = [j.child for j in self.child_joints(self.base_link) if j.name in upper_joints]
+        while pending:
+            name = pending.pop()
+            merged.append(self.link(name))
+            pending += [j.child for j in self.child_joints(name)]
+        shapes = []
+        for link in merged:
+            for shape in link.shapes:
+                pose = Origin.from_matrix(frames[link.name] @ shape.origin.matrix)
+                shapes.append(dataclasses.replace(shape, origin=pose))
+        base = Link(
+            self.base_link,
+            combined_inertial([(link.inertial, frames[link.name]) for link in merged]),
+            tuple(shapes),
+            self.link(self.base_link).rgba,
+        )
+        merged_names = {link.name for link in merged}
+        return dataclasses.replace(
+            self,
+            links=(base, *(link for link in self.links if link.name not in merged_names)),
+            joints=tuple(j for j in self.joints if j.name not in upper_joints),
+            walk_ready={k: v for k, v in self.walk_ready.items() if k not in upper_joints},
+        )
 
     def walk_ready_rotation(self, name: str) -> np.ndarray:
         """Rotation of joint ``name``'s child frame in its parent's at the walk-ready angle: the

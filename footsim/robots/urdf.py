@@ -20,10 +20,7 @@ restricts self-collision to the two lower legs/feet (see ``footsim.robots.mjcf``
 
 from __future__ import annotations
 
-import math
 import xml.etree.ElementTree as ET
-
-import numpy as np
 
 from footsim.robots.spec import Box, Capsule, Cylinder, Link, Origin, RobotSpec, Side, Sphere, sole_frame_name
 
@@ -77,36 +74,18 @@ def _link(robot: ET.Element, link: Link) -> None:
             index += 1
 
 
-def _rpy(rotation: np.ndarray) -> tuple[float, float, float]:
-    """URDF roll-pitch-yaw of a rotation matrix (R = Rz(y) Ry(p) Rx(r))."""
-    pitch = math.asin(max(-1.0, min(1.0, -float(rotation[2, 0]))))
-    return (math.atan2(rotation[2, 1], rotation[2, 2]), pitch, math.atan2(rotation[1, 0], rotation[0, 0]))
-
-
-def _weld_upper_body(robot: ET.Element, spec: RobotSpec) -> None:
-    """Make the arm and head joints fixed joints at their walk-ready angles (folded into the joint
-    origin), so a loader that merges fixed links (PyBullet) merges them into the torso."""
-    upper_body = set(spec.upper_body_joint_names)
-    for element in robot.findall("joint"):
-        name = element.get("name")
-        if element.get("type") != "revolute" or name not in upper_body:
-            continue
-        rotation = spec.walk_ready_rotation(name)
-        element.set("type", "fixed")
-        for tag in ("axis", "limit", "dynamics"):
-            child = element.find(tag)
-            if child is not None:
-                element.remove(child)
-        origin = element.find("origin")
-        assert origin is not None, "build_urdf gives every joint an <origin>"
-        origin.set("rpy", _fmt(*_rpy(rotation)))
-
-
-def build_urdf(spec: RobotSpec, rigid_upper_body: bool = False) -> ET.Element:
+def build_urdf(spec: RobotSpec, rigid_upper_body: bool = False, sole_frames: bool = True) -> ET.Element:
     """The ``<robot>`` element of ``spec``'s URDF; with ``rigid_upper_body`` the arm and head
-    joints are welded at their walk-ready angles (as the MJCF's ``rigid_upper_body``)."""
+    joints are welded at their walk-ready angles (as the MJCF's ``rigid_upper_body``): the arm and
+    head links are merged into the torso link (:meth:`RobotSpec.with_rigid_upper_body`).
+    ``sole_frames=False`` leaves out the massless sole-frame links: PyBullet's
+    ``URDF_MERGE_FIXED_LINKS`` misplaces the foot's centre of mass when it merges a child whose
+    fixed joint is rotated (Wolfgang's sole frames are yawed 90° in the foot links; measured: the
+    foot COM 9 cm off), and the PyBullet backend takes the sole poses from the spec anyway."""
     if not spec.joints:
         raise ValueError(f"robot {spec.name!r} has no kinematic model to build")
+    if rigid_upper_body:
+        spec = spec.with_rigid_upper_body()
     robot = ET.Element("robot", name=spec.name)
     # Base first: URDF loaders take the link that is no joint's child as the root.
     _link(robot, spec.link(spec.base_link))
@@ -128,7 +107,7 @@ def build_urdf(spec: RobotSpec, rigid_upper_body: bool = False) -> ET.Element:
             velocity=_fmt(joint.velocity),
         )
         ET.SubElement(element, "dynamics", damping=_fmt(joint.servo.damping), friction=_fmt(joint.servo.frictionloss))
-    for side in (Side.LEFT, Side.RIGHT):
+    for side in (Side.LEFT, Side.RIGHT) if sole_frames else ():
         if side.value not in spec.soles:
             continue
         foot, origin = spec.sole(side)
@@ -142,13 +121,11 @@ def build_urdf(spec: RobotSpec, rigid_upper_body: bool = False) -> ET.Element:
         ET.SubElement(frame_joint, "parent", link=foot)
         ET.SubElement(frame_joint, "child", link=name)
         _origin(frame_joint, origin)
-    if rigid_upper_body:
-        _weld_upper_body(robot, spec)
     return robot
 
 
-def urdf_xml(spec: RobotSpec, rigid_upper_body: bool = False) -> str:
-    """The URDF of ``spec`` as an indented XML document (``rigid_upper_body``: see :func:`build_urdf`)."""
-    robot = build_urdf(spec, rigid_upper_body)
+def urdf_xml(spec: RobotSpec, rigid_upper_body: bool = False, sole_frames: bool = True) -> str:
+    """The URDF of ``spec`` as an indented XML document (options: see :func:`build_urdf`)."""
+    robot = build_urdf(spec, rigid_upper_body, sole_frames)
     ET.indent(robot)
     return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"

@@ -183,7 +183,7 @@ class PybulletSim(PhysicsSim):
     # -- world ----------------------------------------------------------------------------
     def build(self, robot: RobotSpec, physics_dt: float) -> None:
         self.spec, self.physics_dt = robot, float(physics_dt)
-        text = urdf_xml(robot, self.rigid_upper_body)
+        text = urdf_xml(robot, self.rigid_upper_body, sole_frames=False)
         self._key = (text, self.self_collision, self.armature_scale)
         # Motor gains per joint (see the module docstring for the mapping).
         self._gain = {

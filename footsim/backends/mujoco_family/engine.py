@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -203,6 +204,7 @@ class MujocoModelOptions:
         servo_kp_scale: float = 1.0,
         servo_damping_scale: float = 1.0,
         servo_kv: float = 0.0,
+        contact_solref: Sequence[float] | None = None,
         obstacle_inflation: float = 0.0,
         control_dt: float = 0.01,
         rigid_upper_body: bool = True,
@@ -221,6 +223,15 @@ class MujocoModelOptions:
         # (MuJoCo's geom margin = gap would report near misses without force, but in MuJoCo 3.17
         # the walk still changed when such excluded contacts existed.)
         self.obstacle_inflation = float(obstacle_inflation)
+        if contact_solref is not None:
+            solref = [float(v) for v in contact_solref]
+            if len(solref) != 2 or not all(math.isfinite(v) and v > 0 for v in solref):
+                raise ValueError(
+                    f"backend.contact_solref must be [time constant, damping ratio] > 0 or null, got {contact_solref!r}"
+                )
+            contact_solref = solref
+        # MuJoCo's contact softness of every geom (the MJCF's value when null: footsim.robots.mjcf).
+        self.contact_solref = contact_solref
         ServoFeedForward(servo_kv, np.ones(1), control_dt)  # validates servo_kv and control_dt
         self.servo_kv, self.control_dt = float(servo_kv), float(control_dt)
         self._feed_forward: ServoFeedForward | None = None  # when servo_kv > 0
@@ -243,6 +254,8 @@ class MujocoModelOptions:
         Both backends run the same code on the same compiled arrays, so the configured values
         reach the solver unrounded (an XML round trip would keep 6 significant digits)."""
         name2id = mujoco.mj_name2id
+        if self.contact_solref is not None:
+            m.geom_solref[:] = self.contact_solref
         feet = {name2id(m, mujoco.mjtObj.mjOBJ_BODY, robot.foot_link(side)) for side in ("left", "right")}
         for g in (g for g in range(m.ngeom) if int(m.geom_bodyid[g]) in feet):  # torsional / rolling friction
             contact = foot_contact(m.geom_friction[g], self.torsional_friction, self.rolling_friction)
