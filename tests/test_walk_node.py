@@ -315,3 +315,19 @@ def test_phase_reset_ends_the_step_early_on_a_bump(name):
     assert on_bump.executed.first.x < on_flat.executed.first.x - 0.002
     assert on_bump.executed.first.x < LONG.first.x
     assert on_bump.max_tilt < 0.5
+
+
+@pytest.mark.parametrize("name", ["mujoco", "dm_control", "pybullet"])
+def test_sole_forces_carry_the_robots_weight_standing(name):
+    pytest.importorskip({"mujoco": "mujoco", "dm_control": "dm_control", "pybullet": "pybullet"}[name])
+    walk = fconf.build_walk(fconf.load_preset("walk", backend=name))
+    backend = fconf.build_backend(fconf.load_preset("backend", {"name": name}), ROBOT, walk)
+    try:
+        backend.reset(EMPTY, np.random.default_rng(0))
+        backend.hold(0.5)
+        left, right = backend.sim.sole_forces()
+    finally:
+        backend.close()
+    weight = ROBOT.total_mass * 9.81
+    assert left + right == pytest.approx(weight, rel=0.03)
+    assert left == pytest.approx(right, rel=0.2)  # standing on both feet

@@ -8,7 +8,9 @@ PyBullet).  The driver's one control tick is: read the state (a sim whose arrays
 views refreshes them) → the control law (``footsim.backends.control.control_tick``: tilt,
 stabilizer, latency, servo feed-forward, command write) → send the commands (the same) →
 advance.  The walk-engine loop, the periodic state check (fall by fused tilt, sim errors),
-obstacle-contact bookkeeping, timing and the planar pose live here, once.
+obstacle-contact bookkeeping, timing and the planar pose live here, once.  So do the walk node's
+options of ``WalkParams`` (``_node_ticks``): the engine update rate, the trunk PID and the phase
+reset on foot contact; with them off the control tick is the plain one.
 """
 
 from __future__ import annotations

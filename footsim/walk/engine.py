@@ -25,9 +25,11 @@ check is the compiled kernel the footstep placement uses (:mod:`footsim.walk.ker
   acceleration (C2 hand-over).  Feet start and end every half step at rest, so they are C2 too.
 * States: IDLE → START_MOVEMENT (a trunk-only half cycle) → START_STEP → WALKING;
   STOP_STEP → STOP_MOVEMENT → IDLE.
+* Phase reset: :meth:`QuinticWalk.end_step` ends a step early where the flying foot touched down
+  and plans the rest of the call from there (the 3D driver calls it on foot contact).
 
 Timing.  The engine runs at ``control_dt`` (the backend's control period; ``WalkParams.engine_freq``,
-the Bit-Bots' walk-node rate, is not used here).  A double step lasts exactly
+the Bit-Bots' walk-node rate, is the 3D driver's: it holds the targets between updates).  A double step lasts exactly
 ``n = round(1 / (freq · control_dt))`` ticks: the walk period is quantised to a whole number of
 ticks, so the engine's effective frequency is ``1 / (n · control_dt)`` (``engine.freq``; for the
 defaults at 500 Hz, 255 ticks = 0.510 s vs 1/freq = 0.50935 s, −0.13 %).  The phase advances
