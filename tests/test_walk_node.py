@@ -331,3 +331,48 @@ def test_sole_forces_carry_the_robots_weight_standing(name):
     weight = ROBOT.total_mass * 9.81
     assert left + right == pytest.approx(weight, rel=0.03)
     assert left == pytest.approx(right, rel=0.2)  # standing on both feet
+
+
+@pytest.mark.parametrize(
+    "values,field",
+    [
+        ({"phase_reset_foot_pressure_active": 1.0}, "phase_reset_foot_pressure_active"),
+        ({"phase_reset_min_phase": 1.5}, "phase_reset_min_phase"),
+        ({"phase_reset_ground_min_pressure": -1.0}, "phase_reset_ground_min_pressure"),
+        ({"trunk_pid_pitch_i_clamp_min": 0.01}, "trunk_pid_pitch_i_clamp_min"),  # above its max (0)
+        ({"trunk_pid_roll_d": math.nan}, "trunk_pid_roll_d"),
+        ({"engine_freq": -125.0}, "engine_freq"),
+    ],
+)
+def test_invalid_walk_node_options_name_the_field(values, field):
+    with pytest.raises(ValueError, match=field):
+        WalkParams(**values)
+
+
+def test_walk_node_options_load_from_a_config_mapping():
+    p = WalkParams.from_mapping(
+        {"engine_freq": None, "phase_reset_foot_pressure_active": True, "trunk_pid_roll_p": "0.1"}
+    )
+    assert p.engine_freq is None and p.phase_reset_foot_pressure_active is True and p.trunk_pid_roll_p == 0.1
+    assert WalkParams.from_mapping({"engine_freq": 125}).engine_freq == 125.0
+
+
+@pytest.mark.parametrize("name", ["mujoco", "dm_control", "pybullet"])
+def test_trunk_pid_acts_on_every_3d_backend(name):
+    """The PID reads each sim's tilt (PyBullet: through read_state) and changes the commands:
+    after a double step the last command differs from the engine's target by the IK of the shift."""
+    pytest.importorskip({"mujoco": "mujoco", "dm_control": "dm_control", "pybullet": "pybullet"}[name])
+    base = fconf.load_preset("walk", backend=name)
+    results = {}
+    for p_gain in (0.0, 0.05):
+        walk = fconf.build_walk({**base, "trunk_pid_pitch_p": p_gain})
+        backend = fconf.build_backend(fconf.load_preset("backend", {"name": name}), ROBOT, walk)
+        try:
+            backend.reset(EMPTY, np.random.default_rng(0))
+            result = backend.execute(FORWARD)
+            results[p_gain] = (result.pose, backend.sim.state.last_targets())
+        finally:
+            backend.close()
+    (plain_pose, plain_targets), (pid_pose, pid_targets) = results[0.0], results[0.05]
+    assert not np.allclose(plain_targets, pid_targets, atol=1e-6)
+    assert plain_pose != pid_pose
