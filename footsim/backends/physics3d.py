@@ -482,12 +482,7 @@ class Physics3DBackend(Backend):
             s.command,
             s.leg_ids,
         )
-        layouts = tuple(
-            (a.dtype, a.ndim, a.flags.c_contiguous, a.flags.f_contiguous, a.flags.writeable) for a in (targets, trunk)
-        )
-        key = (control_tick, s, gains is None, delay is None, layouts)  # what decides the compiled types
-        args = (targets, trunk, 0, gains, quat, w_last, frame, delay, slot, feed_forward, command, leg_ids)
-        tick = self._typed(control_tick, key, args)
+        tick = self._control_tick(targets, trunk, gains, delay)
         read = None if (s.live or gains is None) else self.sim.read_state
         write = None if s.live else self.sim.write_command
         push = None if self._push_ticks is None else self._push_tick
@@ -531,12 +526,7 @@ class Physics3DBackend(Backend):
             s.command,
             s.leg_ids,
         )
-        layouts = tuple(
-            (a.dtype, a.ndim, a.flags.c_contiguous, a.flags.f_contiguous, a.flags.writeable) for a in (targets, trunk)
-        )
-        key = (control_tick, s, gains is None, delay is None, layouts)
-        args = (targets, trunk, 0, gains, quat, w_last, frame, delay, slot, feed_forward, command, leg_ids)
-        tick = self._typed(control_tick, key, args)
+        tick = self._control_tick(targets, trunk, gains, delay)
         read = None if (s.live or (gains is None and pid is None)) else self.sim.read_state
         write = None if s.live else self.sim.write_command
         push = None if self._push_ticks is None else self._push_tick
@@ -577,6 +567,29 @@ class Physics3DBackend(Backend):
             return None
 
         return run
+
+    def _control_tick(self, targets: np.ndarray, trunk: np.ndarray, gains: np.ndarray | None, delay):
+        """``control_tick``'s compiled code for these arrays and the sim's state contract."""
+        s = self.sim.state
+        layouts = tuple(
+            (a.dtype, a.ndim, a.flags.c_contiguous, a.flags.f_contiguous, a.flags.writeable) for a in (targets, trunk)
+        )
+        key = (control_tick, s, gains is None, delay is None, layouts)  # what decides the compiled types
+        args = (
+            targets,
+            trunk,
+            0,
+            gains,
+            s.quat,
+            s.w_last,
+            s.frame,
+            delay,
+            self._delay_slot,
+            s.feed_forward,
+            s.command,
+            s.leg_ids,
+        )
+        return self._typed(control_tick, key, args)
 
     def _typed(self, kernel, key: tuple, args: tuple):
         """``kernel``'s compiled code for the types of ``args`` (``footsim.compiled.typed_entry``), kept
