@@ -46,7 +46,9 @@ def test_dm_control_inherits_the_mujoco_values():
     assert {k: v for k, v in _raw("backend", "mujoco").items() if k != "defaults"} == mujoco
 
 
-@pytest.mark.parametrize("backend, walk", [("pymunk", "default"), ("mujoco", "mujoco"), ("pybullet", "mujoco")])
+@pytest.mark.parametrize(
+    "backend, walk", [("pymunk", "default"), ("mujoco", "footsim_slow"), ("pybullet", "footsim_slow")]
+)
 def test_the_walk_default_is_the_backends(backend, walk):
     expected = {k: v for k, v in _raw("walk", walk).items() if k != "defaults"}
     assert fconf.env_config(backend)["walk"] == expected

@@ -224,6 +224,25 @@ def test_from_mapping_takes_null_first_step_trunk_phase():
 
 PRESETS = {"bitbots_sim": "sim", "bitbots_robot": "robot", "bitbots_2022": "dq_webots"}
 NODE_KEYS = {"engine_freq", "x_speed_multiplier", "y_speed_multiplier", "yaw_speed_multiplier"}
+# The walk node's trunk PID and foot-pressure phase reset: WalkParams field -> FACTS row.
+NODE_ROWS = {
+    **{
+        f"trunk_pid_{axis}_{gain}": f"node.trunk_pid.{axis}.{gain}"
+        for axis in ("pitch", "roll")
+        for gain in ("p", "i", "d", "i_clamp_min", "i_clamp_max")
+    },
+    "phase_reset_foot_pressure_active": "node.phase_reset.foot_pressure.active",
+    "phase_reset_min_phase": "node.phase_reset.min_phase",
+    "phase_reset_ground_min_pressure": "node.phase_reset.foot_pressure.ground_min_pressure",
+}
+
+
+def facts_row(key: str) -> str:
+    if key in NODE_ROWS:
+        return NODE_ROWS[key]
+    return f"node.{key}" if key in NODE_KEYS else f"engine.{key}"
+
+
 MISSING = "—"
 
 
@@ -266,16 +285,19 @@ def test_preset_values_are_the_facts_table_column(name, facts_table):
     column = PRESETS[name]
     values = preset(name)
     for key, value in values.items():
-        row = f"node.{key}" if key in NODE_KEYS else f"engine.{key}"
+        row = facts_row(key)
         assert row in facts_table, f"{name}.{key}: no FACTS row {row}"
         cell = facts_table[row][column]
         assert cell != MISSING, f"{name}.{key}: FACTS has no {column} value"
-        assert float(value) == float(cell), f"{name}.{key} = {value}, FACTS {column} = {cell}"
+        if isinstance(value, bool):
+            assert str(value) == cell, f"{name}.{key} = {value}, FACTS {column} = {cell}"
+        else:
+            assert float(value) == float(cell), f"{name}.{key} = {value}, FACTS {column} = {cell}"
     # Every engine row FACTS gives for this column is in the preset (the kick excepted: no kick).
     for row, cells in facts_table.items():
         if row.startswith("engine.") and not row.startswith("engine.kick_") and cells[column] != MISSING:
             assert row[len("engine.") :] in values, f"{name} lacks {row} = {cells[column]}"
-    assert NODE_KEYS <= set(values)
+    assert NODE_KEYS <= set(values) and set(NODE_ROWS) <= set(values)
     WalkParams.from_mapping(values)  # loads
 
 
@@ -302,3 +324,16 @@ def test_facts_table_parser_reads_a_small_table():
         ]
     )
     assert facts_parameter_table(text) == {"engine.freq": {"a": "1.0", "b": "—"}}
+
+
+# --- footsim's own tuned gait as a named preset --------------------------------------------------
+
+
+def test_footsim_slow_is_the_tuned_gait_the_3d_backends_walk_by_default():
+    from footsim.config import load_preset
+
+    slow = load_preset("walk", "footsim_slow")
+    assert slow["freq"] == 0.819559 and slow["trunk_height"] == 0.360584  # the tuned 0.82 Hz gait
+    assert WalkParams.from_mapping(slow).double_step_duration == pytest.approx(1.0 / 0.819559)
+    for backend in ("mujoco", "dm_control", "pybullet"):
+        assert load_preset("walk", backend=backend) == slow, backend

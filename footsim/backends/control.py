@@ -332,3 +332,62 @@ class ServoFeedForward:
     def reset(self, targets) -> None:
         """Start from rest at ``targets`` (no feed-forward until they change)."""
         self.previous[:] = targets
+
+
+class PID:
+    """One PID controller on an error signal, updated at irregular intervals ``dt``.
+
+    ``command = p · e + I + d · (e − e_previous) / dt`` with ``I`` the running sum of
+    ``i · e · dt``, clamped to [``i_min``, ``i_max``] (both 0: no I term).  The first update after
+    :meth:`reset` has no previous error and no D term.
+    """
+
+    def __init__(self, p: float = 0.0, i: float = 0.0, d: float = 0.0, i_min: float = 0.0, i_max: float = 0.0):
+        self.p, self.i, self.d = float(p), float(i), float(d)
+        self.i_min, self.i_max = float(i_min), float(i_max)
+        self.active = any(g != 0.0 for g in (self.p, self.i, self.d))
+        self.reset()
+
+    def reset(self) -> None:
+        self.integral = 0.0
+        self.previous: float | None = None
+
+    def update(self, error: float, dt: float) -> float:
+        self.integral = min(self.i_max, max(self.i_min, self.integral + self.i * error * dt))
+        derivative = 0.0 if self.previous is None or not dt > 0 else (error - self.previous) / dt
+        self.previous = error
+        return self.p * error + self.integral + self.d * derivative
+
+
+class TrunkPID:
+    """The Bit-Bots' walk stabilizer: PID controllers on the fused trunk pitch and roll whose
+    outputs move the trunk in the support sole's frame (``WalkParams.trunk_pid_*``).
+
+    The error of each axis is planned − measured fused angle [rad] (the planned trunk orientation
+    in the support frame has fused roll 0 and fused pitch = its pitch, as the engine's trunk never
+    rolls); the pitch controller's output is the trunk's x shift, the roll controller's its y
+    shift [m].  The 3D driver turns the shift into joint targets by the engine's leg IK
+    (``QuinticWalk.trunk_shifted_targets``) at every engine update.  All gains 0 = off.
+    """
+
+    def __init__(self, pitch: PID, roll: PID):
+        self.pitch, self.roll = pitch, roll
+        self.active = pitch.active or roll.active
+
+    @classmethod
+    def from_walk(cls, walk) -> TrunkPID:
+        """From a ``WalkParams``'s ``trunk_pid_{pitch,roll}_{p,i,d,i_clamp_min,i_clamp_max}``."""
+
+        def axis(name: str) -> PID:
+            g = {key: getattr(walk, f"trunk_pid_{name}_{key}") for key in ("p", "i", "d", "i_clamp_min", "i_clamp_max")}
+            return PID(g["p"], g["i"], g["d"], g["i_clamp_min"], g["i_clamp_max"])
+
+        return cls(axis("pitch"), axis("roll"))
+
+    def reset(self) -> None:
+        self.pitch.reset()
+        self.roll.reset()
+
+    def shift(self, roll_error: float, pitch_error: float, dt: float) -> tuple[float, float]:
+        """The trunk's (x, y) shift [m] for these errors (planned − measured fused roll, pitch [rad])."""
+        return self.pitch.update(pitch_error, dt), self.roll.update(roll_error, dt)

@@ -8,7 +8,9 @@ PyBullet).  The driver's one control tick is: read the state (a sim whose arrays
 views refreshes them) → the control law (``footsim.backends.control.control_tick``: tilt,
 stabilizer, latency, servo feed-forward, command write) → send the commands (the same) →
 advance.  The walk-engine loop, the periodic state check (fall by fused tilt, sim errors),
-obstacle-contact bookkeeping, timing and the planar pose live here, once.
+obstacle-contact bookkeeping, timing and the planar pose live here, once.  So do the walk node's
+options of ``WalkParams`` (``_node_ticks``): the engine update rate, the trunk PID and the phase
+reset on foot contact; with them off the control tick is the plain one.
 """
 
 from __future__ import annotations
@@ -24,8 +26,10 @@ import numpy as np
 
 from footsim.backends.base import Backend, RenderOverlay, StepResult
 from footsim.backends.control import (
+    TrunkPID,
     TrunkStabilizer,
     all_finite,
+    base_tilt,
     control_tick,
     fused_roll_pitch,
     state_ok,
@@ -35,7 +39,7 @@ from footsim.compiled import typed_entry
 from footsim.geometry import Pose2D
 from footsim.robots.spec import RobotSpec
 from footsim.scene import Scene
-from footsim.walk.engine import QuinticWalk, WalkTrajectory
+from footsim.walk.engine import QuinticWalk, WalkState, WalkTrajectory
 from footsim.walk.footsteps import DoubleStep, FootstepGeometry, Side
 from footsim.walk.ik import LEG_JOINT_NAMES
 from footsim.walk.params import WalkParams
@@ -199,6 +203,11 @@ class PhysicsSim(ABC):
         """A reason if the simulation became invalid (NaN state, instability), else None."""
         return None
 
+    def sole_forces(self) -> tuple[float, float]:
+        """The normal contact force [N] on the (left, right) foot link from everything it touches
+        (floor, obstacles, the other foot): the foot-pressure read of the phase reset."""
+        raise NotImplementedError(f"{type(self).__name__} reads no foot contact forces (needed by the phase reset)")
+
     def apply_base_force(self, force_xyz: np.ndarray) -> None:
         """Apply this external force [N] (world frame) at the torso's centre of mass on every
         physics tick until it is changed (zeros: no force).  Cleared by nothing else."""
@@ -349,6 +358,11 @@ class Physics3DBackend(Backend):
         self.randomization_detail: dict[str, float] = {}  # directions drawn from the backend rng
         self._tilt, self._max_tilt = (0.0, 0.0), 0.0  # fused (roll, pitch) at the last check; max this step
         self._tilt_buffer = np.zeros(2)  # state_ok writes the tilt here
+        # The walk node's options (WalkParams): the trunk PID, the engine update rate, the phase reset.
+        self.trunk_pid = TrunkPID.from_walk(walk)
+        self._engine_update = 0  # index of the last engine update (engine time × engine_freq)
+        self._engine_time = 0.0  # engine time of the last engine update [s]
+        self._held = (np.zeros(12), np.zeros(6))  # the targets and trunk pose of the last engine update
 
     # -- randomization --------------------------------------------------------------------
     @property
@@ -449,7 +463,7 @@ class Physics3DBackend(Backend):
             self._next_push = tick + interval
         self._tick += 1
 
-    def _ticks(self, trajectory: WalkTrajectory, stabilized: bool = True) -> Callable[[int, int], None]:
+    def _ticks(self, trajectory: WalkTrajectory, stabilized: bool = True) -> Callable[[int, int], int | None]:
         """This trajectory's control ticks: ``run(k0, k1)`` does ticks ``k0 … k1 − 1``, each the
         one tick of the module docstring: read the state, the control law (stabilizer unless
         ``stabilized`` is False, latency, servo feed-forward), send the commands, the push
@@ -457,6 +471,11 @@ class Physics3DBackend(Backend):
         s = self.sim.state
         targets, trunk = trajectory.joint_targets, trajectory.trunk_in_support  # roll, pitch: as in .trunk
         gains = self._stabilizer_gains if (stabilized and self.stabilizer.active) else None
+        walk = self.walk_current
+        pid = self.trunk_pid if (stabilized and self.trunk_pid.active) else None
+        reset = stabilized and walk.phase_reset_foot_pressure_active
+        if walk.engine_freq is not None or pid is not None or reset:
+            return self._node_ticks(trajectory, gains, pid, reset)
         delay, slot = self._delay_line(), self._delay_slot
         quat, w_last, frame, feed_forward, command, leg_ids = (
             s.quat,
@@ -466,18 +485,13 @@ class Physics3DBackend(Backend):
             s.command,
             s.leg_ids,
         )
-        layouts = tuple(
-            (a.dtype, a.ndim, a.flags.c_contiguous, a.flags.f_contiguous, a.flags.writeable) for a in (targets, trunk)
-        )
-        key = (control_tick, s, gains is None, delay is None, layouts)  # what decides the compiled types
-        args = (targets, trunk, 0, gains, quat, w_last, frame, delay, slot, feed_forward, command, leg_ids)
-        tick = self._typed(control_tick, key, args)
+        tick = self._control_tick(targets, trunk, gains, delay)
         read = None if (s.live or gains is None) else self.sim.read_state
         write = None if s.live else self.sim.write_command
         push = None if self._push_ticks is None else self._push_tick
         advance, substeps = self.sim.advance, self.substeps
 
-        def run(k0: int, k1: int) -> None:
+        def run(k0: int, k1: int) -> int | None:
             for k in range(k0, k1):
                 if read is not None:
                     read()
@@ -487,8 +501,98 @@ class Physics3DBackend(Backend):
                 if push is not None:
                     push()
                 advance(substeps)
+            return None
 
         return run
+
+    def _node_ticks(
+        self, trajectory: WalkTrajectory, gains: np.ndarray | None, pid: TrunkPID | None, reset: bool
+    ) -> Callable[[int, int], int | None]:
+        """:meth:`_ticks` with the walk node's options (``WalkParams``): each tick takes the
+        engine's targets only at an engine update (``engine_freq``; None: every tick), else holds
+        the last ones; at an update the trunk PID moves the trunk (``pid``); after the physics
+        the phase reset (``reset``) may end the step: ``run(k0, k1)`` then stops after tick k and
+        returns k (else None).
+
+        An engine update is due at tick k when ``floor(t_k · engine_freq)`` (``t_k``: the tick's
+        engine time) has moved on since the last one: at most ``engine_freq`` updates a second,
+        each seen at the first control tick at or after its instant."""
+        s = self.sim.state
+        walk = self.walk_current
+        targets, trunk = trajectory.joint_targets.copy(), trajectory.trunk_in_support.copy()
+        delay, slot = self._delay_line(), self._delay_slot
+        quat, w_last, frame, feed_forward, command, leg_ids = (
+            s.quat,
+            s.w_last,
+            s.frame,
+            s.feed_forward,
+            s.command,
+            s.leg_ids,
+        )
+        tick = self._control_tick(targets, trunk, gains, delay)
+        read = None if (s.live or (gains is None and pid is None)) else self.sim.read_state
+        write = None if s.live else self.sim.write_command
+        push = None if self._push_ticks is None else self._push_tick
+        advance, substeps = self.sim.advance, self.substeps
+        times = trajectory.t.tolist()
+        rate = walk.engine_freq
+        updates = [math.floor(t * rate + 1e-9) for t in times] if rate is not None else list(range(1, len(times) + 1))
+        contact_from = 0.5 * walk.phase_reset_min_phase
+        can_reset = (trajectory.state == WalkState.START_STEP) | (trajectory.state == WalkState.WALKING)
+        phases, left_support = trajectory.phase.tolist(), trajectory.support.tolist()
+        threshold = walk.phase_reset_ground_min_pressure
+
+        def run(k0: int, k1: int) -> int | None:
+            for k in range(k0, k1):
+                if read is not None:
+                    read()
+                update = updates[k]
+                if rate is None or update != self._engine_update:
+                    if pid is not None:
+                        roll, pitch = base_tilt(quat, w_last, frame)
+                        dx, dy = pid.shift(trunk[k, 3] - roll, trunk[k, 4] - pitch, times[k] - self._engine_time)
+                        targets[k] = self.engine.trunk_shifted_targets(trajectory, k, dx, dy)
+                    self._engine_update, self._engine_time = update, times[k]
+                    self._held = (targets[k], trunk[k])
+                else:
+                    targets[k], trunk[k] = self._held
+                tick(targets, trunk, k, gains, quat, w_last, frame, delay, slot, feed_forward, command, leg_ids)
+                if write is not None:
+                    write()
+                if push is not None:
+                    push()
+                advance(substeps)
+                if reset and can_reset[k]:
+                    phase = phases[k]
+                    if contact_from < phase < 0.5 or phase > 0.5 + contact_from:
+                        if self.sim.sole_forces()[1 if left_support[k] else 0] > threshold:
+                            return k
+            return None
+
+        return run
+
+    def _control_tick(self, targets: np.ndarray, trunk: np.ndarray, gains: np.ndarray | None, delay):
+        """``control_tick``'s compiled code for these arrays and the sim's state contract."""
+        s = self.sim.state
+        layouts = tuple(
+            (a.dtype, a.ndim, a.flags.c_contiguous, a.flags.f_contiguous, a.flags.writeable) for a in (targets, trunk)
+        )
+        key = (control_tick, s, gains is None, delay is None, layouts)  # what decides the compiled types
+        args = (
+            targets,
+            trunk,
+            0,
+            gains,
+            s.quat,
+            s.w_last,
+            s.frame,
+            delay,
+            self._delay_slot,
+            s.feed_forward,
+            s.command,
+            s.leg_ids,
+        )
+        return self._typed(control_tick, key, args)
 
     def _typed(self, kernel, key: tuple, args: tuple):
         """``kernel``'s compiled code for the types of ``args`` (``footsim.compiled.typed_entry``), kept
@@ -516,6 +620,7 @@ class Physics3DBackend(Backend):
         self._delay = np.tile(standing, (self._latency, 1)) if self._latency else None
         self._delay_slot[:] = 0
         self._tick = 0
+        self._restart_walk_node(standing)
         self._push_end = -1
         if self._push_ticks is not None:
             self.sim.apply_base_force(np.zeros(3))
@@ -528,28 +633,42 @@ class Physics3DBackend(Backend):
             self._apply_sim_randomization(None)
         trajectory = self.engine.double_step(double_step)
         self._max_tilt = 0.0  # updated by every _status() check of this step
-        fell = collided = False
+        fell = collided = stopped = False
         error = None
-        ticks, n_ticks, check = 0, len(trajectory.joint_targets), self.contact_check_every
-        run = self._ticks(trajectory)
+        check = self.contact_check_every
         watch_contacts = bool(self.scene.all_obstacles)  # type: ignore[union-attr]  # reset() set the scene
-        while ticks < n_ticks:  # runs of `check` ticks, the checks between them
-            start, ticks = ticks, min(ticks + check, n_ticks)
-            run(start, ticks)
-            if ticks % check == 0:
-                error, fell = self._status()
-                if error is not None or fell:
+        done = unreachable = 0  # ticks run in earlier parts (a phase reset re-plans the rest)
+        while True:
+            ticks, n_ticks, ended = 0, len(trajectory.joint_targets), None
+            run = self._ticks(trajectory)
+            while ticks < n_ticks:  # runs of `check` ticks, the checks between them
+                start, ticks = ticks, min(ticks + check, n_ticks)
+                ended = run(start, ticks)
+                if ended is not None:  # a phase reset after tick `ended`
+                    ticks = ended + 1
                     break
-                if watch_contacts and not collided and self.sim.obstacle_contact():
-                    collided = True
-                    if self.collision_ends_episode:
+                if ticks % check == 0:
+                    error, fell = self._status()
+                    if error is not None or fell:
                         break
+                    if watch_contacts and not collided and self.sim.obstacle_contact():
+                        collided = True
+                        if self.collision_ends_episode:
+                            stopped = True
+                            break
+            planned = n_ticks if ended is None else ticks
+            unreachable += planned - int(np.count_nonzero(trajectory.reachable[:planned]))
+            done += ticks
+            if ended is None or error is not None or fell or stopped:
+                break
+            trajectory = self.engine.end_step(trajectory, ended)
+        ticks = done
         if error is None and not fell:
             error, fell = self._status()
         pose = self.planar_pose() if error is None else Pose2D(math.nan, math.nan, math.nan)
         info: dict[str, object] = {
             "foot_interference": trajectory.interfered,
-            "ik_unreachable_ticks": n_ticks - int(np.count_nonzero(trajectory.reachable)),
+            "ik_unreachable_ticks": unreachable,
         }
         if self.randomization_detail:
             info["randomization_detail"] = dict(self.randomization_detail)
@@ -617,7 +736,16 @@ class Physics3DBackend(Backend):
         """Run the engine's stop sequence (back to standing, open loop); returns its duration [s]."""
         trajectory = self.engine.stop()
         self._ticks(trajectory, stabilized=False)(0, len(trajectory))
+        self.trunk_pid.reset()  # the next walk starts without the old I and D state
         return len(trajectory) * self.control_dt
+
+    def _restart_walk_node(self, standing: np.ndarray) -> None:
+        """The walk node's state at reset: engine update 0 at engine time 0 = the standing pose."""
+        self.trunk_pid.reset()
+        self._engine_update, self._engine_time = 0, 0.0
+        pose = np.zeros(6)
+        pose[2], pose[4] = self.walk_current.trunk_height, self.walk_current.trunk_pitch
+        self._held = (np.array(standing, dtype=float), pose)
 
     def hold(self, seconds: float) -> None:
         """Keep the current joint targets for a while (used by the walk checks)."""

@@ -25,9 +25,11 @@ check is the compiled kernel the footstep placement uses (:mod:`footsim.walk.ker
   acceleration (C2 hand-over).  Feet start and end every half step at rest, so they are C2 too.
 * States: IDLE → START_MOVEMENT (a trunk-only half cycle) → START_STEP → WALKING;
   STOP_STEP → STOP_MOVEMENT → IDLE.
+* Phase reset: :meth:`QuinticWalk.end_step` ends a step early where the flying foot touched down
+  and plans the rest of the call from there (the 3D driver calls it on foot contact).
 
 Timing.  The engine runs at ``control_dt`` (the backend's control period; ``WalkParams.engine_freq``,
-the Bit-Bots' walk-node rate, is not used here).  A double step lasts exactly
+the Bit-Bots' walk-node rate, is the 3D driver's: it holds the targets between updates).  A double step lasts exactly
 ``n = round(1 / (freq · control_dt))`` ticks: the walk period is quantised to a whole number of
 ticks, so the engine's effective frequency is ``1 / (n · control_dt)`` (``engine.freq``; for the
 defaults at 500 Hz, 255 ticks = 0.510 s vs 1/freq = 0.50935 s, −0.13 %).  The phase advances
@@ -42,6 +44,7 @@ interval, so the last tick of a double step is the put-down instant of the secon
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from enum import IntEnum
@@ -166,6 +169,7 @@ class _HalfStep:
     tick_times: np.ndarray  # local times of this half step's ticks, in (0, duration]
     phase_start: float  # walk phase at local time 0
     phase_span: float  # phase advanced over `duration`
+    last_z: float = 0.0  # flying foot's height at the start, in the support frame (after a phase reset)
 
 
 @dataclass(frozen=True)
@@ -346,6 +350,7 @@ class QuinticWalk:
         self._state = WalkState.IDLE
         self._tick = 0
         self._feet = self.geometry.initial_feet(pose)
+        self._last_call: tuple | None = None  # the last call's trajectory and plans (end_step)
         # The trunk state is always kept in the frame of the next half step's support foot; the
         # next half step from IDLE is the start movement, in right support.
         self._trunk: TrunkState = [tuple(row) for row in self._standing_trunk_state(Side.RIGHT).tolist()]
@@ -450,6 +455,67 @@ class QuinticWalk:
         trajectory = self._run(plans, None, after, 0)
         self._state = WalkState.IDLE
         return trajectory
+
+    def end_step(self, trajectory: WalkTrajectory, k: int) -> WalkTrajectory:
+        """Phase reset: the half step of ``trajectory``'s tick ``k`` ends at that tick (the flying
+        foot touched the ground early) and the rest of the call is planned again from there.
+
+        ``trajectory`` must be this engine's last call (a double step) and tick ``k`` in one of
+        its stepping half steps.  The flying sole's pose at tick ``k`` becomes the new support
+        sole: its x, y and yaw place it, its height above the old support plane lifts the new
+        support frame (the soles stay level in it), and the trunk's position, velocity and
+        acceleration at that instant carry over into the new frame.  When that half step was
+        the call's first, its second half step follows at once, in full, with the planned step
+        relative to the new support foot; otherwise the call ends.  Returns the ticks after
+        ``k`` (empty if the call ended); ``executed`` and ``feet`` of the returned trajectory are
+        the call's, with the early foot where it landed.
+        """
+        if self._last_call is None or self._last_call[0] is not trajectory:
+            raise ValueError("end_step needs the engine's last double step")
+        _, plans, channels, layout = self._last_call
+        if not 0 <= k < len(trajectory):
+            raise ValueError(f"tick {k} is outside the trajectory's {len(trajectory)} ticks")
+        h = int(layout.half_step[k])
+        plan = plans[h]
+        if plan.kind not in (WalkState.START_STEP, WalkState.WALKING) or trajectory.executed is None:
+            raise ValueError(f"tick {k} is in a {plan.kind.name} half step: no flying foot to end it")
+        local_time = float(plan.tick_times[k - int(np.searchsorted(layout.half_step, h))])
+        flying = plan.support.other
+        foot = trajectory.local_poses[0 if flying is Side.LEFT else 1, :, k]
+        touchdown, height = Pose2D(float(foot[X]), float(foot[Y]), float(foot[YAW])), float(foot[Z])
+        # The trunk's state at the touchdown (support frame), then in the new support frame.
+        trunk = channels[h * 10 + 5 : h * 10 + 10]  # after the flying foot's five channels
+        x, y, z, pitch, yaw = (knots_state(knots, local_time) for knots in trunk)
+        state = _transform_trunk_state([x, y, z, (0.0, 0.0, 0.0), pitch, yaw], touchdown)
+        state[Z] = (state[Z][0] - height, state[Z][1], state[Z][2])
+        placed = plan.support_pose.compose(touchdown)
+        steps = list(trajectory.executed)
+        i = 1 if plan.phase_start >= 0.5 else 0  # which step of the double step this half step is
+        offset = self.geometry.foot_distance if flying is Side.LEFT else -self.geometry.foot_distance
+        steps[i] = Footstep(touchdown.x, touchdown.y - offset, touchdown.theta)
+        feet = self._feet.with_foot(flying, placed) if i == 1 else None
+        self._tick += k + 1 - len(trajectory)
+        self._trunk = state
+        if i == 1:  # the call ends here
+            self._feet = feet  # type: ignore[assignment]
+            self._last_call = None
+            empty = self._empty_trajectory()
+            return dataclasses.replace(empty, executed=DoubleStep(steps[0], steps[1]), interfered=trajectory.interfered)
+        second = plans[h + 1]
+        before = FeetState(*(placed if side is flying else plan.support_pose for side in (Side.LEFT, Side.RIGHT)))
+        rest = self._plan(second.kind, flying, before, touchdown.inverse(), second.landing, self.half_period, 0.5, 0.5)
+        rest = dataclasses.replace(rest, last_z=-height)
+        after = before.with_foot(plan.support, placed.compose(second.landing))
+        return self._run([rest], DoubleStep(steps[0], steps[1]), after, trajectory.interfered)
+
+    def trunk_shifted_targets(self, trajectory: WalkTrajectory, k: int, dx: float, dy: float) -> np.ndarray:
+        """Tick ``k``'s 12 joint targets with the trunk moved by (``dx``, ``dy``) [m] in the support
+        sole's frame (the trunk PID's correction); the IK clamps them to the joint limits."""
+        local = trajectory.local_poses[:, :, k : k + 1].copy()
+        local[2, X] += dx
+        local[2, Y] += dy
+        q, _ = self._leg_joints(local[2], local[0], local[1])
+        return q[0]
 
     def standing_joint_targets(self) -> np.ndarray:
         """The 12 joint angles (LEG_JOINT_NAMES order) of the standing, walk-ready pose."""
@@ -658,18 +724,18 @@ class QuinticWalk:
                 knots.append((half, end))
             return knots
 
-        def lifted(ground: float, top: float, down: float) -> list:
-            knots = [(0.0, ground)]
+        def lifted(start: float, top: float, down: float) -> list:
+            knots = [(0.0, start)]
             if lift:
-                knots.append((double_support, ground))
+                knots.append((double_support, start))
             knots += [(t, top) for t in apexes]
             knots.append((put_down, down))
             if settled:
-                knots.append((half, ground))
+                knots.append((half, 0.0))
             return knots
 
         ratio = p.foot_overshoot_ratio
-        z = lifted(0.0, p.foot_rise, p.foot_put_down_z_offset)
+        z = lifted(plan.last_z, p.foot_rise, p.foot_put_down_z_offset)
         pitch = lifted(0.0, p.foot_apex_pitch, 0.0)
         y = planar(last.y, landing.y, landing.y + ratio * (landing.y - last.y))
         if double_support < apex < put_down:
@@ -753,7 +819,9 @@ class QuinticWalk:
         self._trunk = trunk_state
         self._feet = feet_after
         self._tick += len(layout.ticks)
-        return self._assemble(layout, plans, sampled, executed, feet_after, interfered)
+        trajectory = self._assemble(layout, plans, sampled, executed, feet_after, interfered)
+        self._last_call = (trajectory, plans, channels, layout)
+        return trajectory
 
     def _leg_joints(self, trunk: np.ndarray, left: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """IK for both legs in one compiled call.  ``trunk``, ``left``, ``right``: (6, n) poses in a common frame."""

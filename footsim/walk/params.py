@@ -11,10 +11,13 @@ conventions (``../shared/FACTS.md``, "Quintic walk: conventions and units"):
   shares of single support; ``trunk_phase``, ``first_step_trunk_phase`` and ``trunk_pause`` are
   shares of a half period.
 * Angles in radians, lengths in metres; trunk offsets are in the support-sole frame.
+* ``engine_freq``, ``trunk_pid_*`` and ``phase_reset_*`` are the walk node's (``node.*``): the 3D
+  driver runs them (``footsim.backends.physics3d``); the 2D backend ignores them.
 
 Defaults are the Bit-Bots' Webots-simulation values of 2022 for the parameters footsim's engine
 has always had, and for the others the value that leaves the motion unchanged (no apex pitch,
-no overshoot, no pauses, the first step's trunk phase = ``trunk_phase``).  Every backend may
+no overshoot, no pauses, the first step's trunk phase = ``trunk_phase``, the engine sampled every
+control tick, no trunk PID, no phase reset).  Every backend may
 override them through the Hydra group ``walk``; ``conf/walk/bitbots_*.yaml`` hold the Bit-Bots'
 own files.  The kick parameters (``engine.kick_*``) are not fields: footsim's engine has no kick.
 """
@@ -25,8 +28,9 @@ import math
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields
 
-# Fields that may be None (the others are finite numbers).
-_OPTIONAL = frozenset({"first_step_trunk_phase"})
+# Fields that may be None, and the switches (the others are finite numbers).
+_OPTIONAL = frozenset({"first_step_trunk_phase", "engine_freq"})
+_SWITCHES = frozenset({"phase_reset_foot_pressure_active"})
 
 
 @dataclass(frozen=True)
@@ -56,9 +60,32 @@ class WalkParams:
     trunk_y_offset: float = 0.0037  # [m]
     trunk_z_movement: float = 0.0155  # vertical trunk oscillation [m]
     first_step_swing_factor: float = 1.806  # trunk swing gain in the start step
-    # The Bit-Bots' walk-node update rate [Hz].  Validated and carried for the 3D driver; the
-    # engine itself is sampled at the backend's control_dt (QuinticWalk's argument).
-    engine_freq: float = 500.0
+    # The Bit-Bots' walk-node update rate [Hz] (node.engine_freq): the 3D driver takes new joint
+    # targets from the engine at this rate and holds them in between; None = every control tick.
+    engine_freq: float | None = None
+    # The Bit-Bots' stabilizer (node.trunk_pid.{pitch,roll}.*): PID controllers on the error
+    # "planned − measured" fused trunk pitch / roll [rad] whose outputs shift the trunk by x (from
+    # pitch) / y (from roll) in the support-sole frame [m]: p [m/rad], i [m/(rad s)], d [m s/rad];
+    # the I term is clamped to [i_clamp_min, i_clamp_max] [m] (both 0, as in their files: no I
+    # term).  All gains 0 = off.  Run by the 3D driver (footsim.backends.control.TrunkPID).
+    trunk_pid_pitch_p: float = 0.0
+    trunk_pid_pitch_i: float = 0.0
+    trunk_pid_pitch_d: float = 0.0
+    trunk_pid_pitch_i_clamp_min: float = 0.0
+    trunk_pid_pitch_i_clamp_max: float = 0.0
+    trunk_pid_roll_p: float = 0.0
+    trunk_pid_roll_i: float = 0.0
+    trunk_pid_roll_d: float = 0.0
+    trunk_pid_roll_i_clamp_min: float = 0.0
+    trunk_pid_roll_i_clamp_max: float = 0.0
+    # Phase reset on foot contact (node.phase_reset.*, foot-pressure mode): once the walk phase
+    # within a half step passes phase_reset_min_phase / 2 (their convention: min_phase in
+    # single-step units, 0.9 = the last 10 % of each half step), a flying-sole normal contact
+    # force above phase_reset_ground_min_pressure [N] ends the step there and the next one
+    # starts (QuinticWalk.end_step).  Run by the 3D driver.
+    phase_reset_foot_pressure_active: bool = False
+    phase_reset_min_phase: float = 0.9
+    phase_reset_ground_min_pressure: float = 1.5
     # Velocity orders: a step per axis = v / (2 freq) * multiplier (then clipped to the limits).
     x_speed_multiplier: float = 1.0
     y_speed_multiplier: float = 1.0
@@ -68,6 +95,10 @@ class WalkParams:
         for f in fields(self):
             value = getattr(self, f.name)
             if value is None and f.name in _OPTIONAL:
+                continue
+            if f.name in _SWITCHES:
+                if not isinstance(value, bool):
+                    raise ValueError(f"WalkParams.{f.name} must be true or false, got {value!r}")
                 continue
             if not isinstance(value, (int, float)) or not math.isfinite(value):
                 kind = "a finite number or None" if f.name in _OPTIONAL else "a finite number"
@@ -86,7 +117,17 @@ class WalkParams:
             "trunk_height": (self.trunk_height > 0, "> 0"),
             "trunk_pause": (0.0 <= self.trunk_pause < 1.0, "in [0, 1)"),
             "trunk_z_movement": (self.trunk_z_movement >= 0, ">= 0"),
-            "engine_freq": (self.engine_freq > 0, "> 0"),
+            "engine_freq": (self.engine_freq is None or self.engine_freq > 0, "> 0 or None"),
+            "trunk_pid_pitch_i_clamp_min": (
+                self.trunk_pid_pitch_i_clamp_min <= self.trunk_pid_pitch_i_clamp_max,
+                "<= trunk_pid_pitch_i_clamp_max",
+            ),
+            "trunk_pid_roll_i_clamp_min": (
+                self.trunk_pid_roll_i_clamp_min <= self.trunk_pid_roll_i_clamp_max,
+                "<= trunk_pid_roll_i_clamp_max",
+            ),
+            "phase_reset_min_phase": (0.0 <= self.phase_reset_min_phase <= 1.0, "in [0, 1]"),
+            "phase_reset_ground_min_pressure": (self.phase_reset_ground_min_pressure >= 0, ">= 0"),
         }
         for name, (ok, valid) in checks.items():
             if not ok:
@@ -114,8 +155,17 @@ class WalkParams:
         unknown = sorted(set(data) - known)
         if unknown:
             raise ValueError(f"unknown walk parameter(s) {unknown}; valid: {sorted(known)}")
-        values: dict = {k: None if v is None and k in _OPTIONAL else float(v) for k, v in data.items()}
+        values: dict = {k: _value(k, v) for k, v in data.items()}
         return cls(**values)
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+
+def _value(name: str, value):
+    """A config value as the field takes it: None (optional fields), a switch as given, else a float."""
+    if value is None and name in _OPTIONAL:
+        return None
+    if name in _SWITCHES:
+        return value  # __post_init__ names a non-boolean
+    return float(value)

@@ -663,6 +663,16 @@ class PybulletSim(PhysicsSim):
             point[8] <= 0.0 for ob in self.obstacle_ids for point in p.getContactPoints(body, ob, physicsClientId=c)
         )
 
+    def sole_forces(self) -> tuple[float, float]:
+        # Touching or penetrating points only, as in obstacle_contact; index 9 = normal force.
+        c, body = self.client, self.robot_id
+        forces = []
+        for side in ("left", "right"):
+            link = self.link_index[self.spec.foot_link(side)]
+            points = p.getContactPoints(bodyA=body, linkIndexA=link, physicsClientId=c)
+            forces.append(sum(point[9] for point in points if point[8] <= 0.0))
+        return float(forces[0]), float(forces[1])
+
     def sim_error(self) -> str | None:
         pos, orn = p.getBasePositionAndOrientation(self.robot_id, physicsClientId=self.client)
         lin, ang = p.getBaseVelocity(self.robot_id, physicsClientId=self.client)

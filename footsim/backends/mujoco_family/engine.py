@@ -240,6 +240,7 @@ class MujocoModelOptions:
             raise ValueError(f"backend.rigid_upper_body must be true or false, got {rigid_upper_body!r}")
         self.rigid_upper_body = bool(rigid_upper_body)
         self.joint_names: tuple[str, ...] = ()  # the robot joints the built model has
+        self._foot_bodies: tuple[int, ...] = ()  # (left, right) foot body ids: sole_forces
         self._rigid_joints: frozenset[str] = frozenset()
 
     def _model_joints(self, robot: RobotSpec) -> None:
@@ -256,7 +257,10 @@ class MujocoModelOptions:
         name2id = mujoco.mj_name2id
         if self.contact_solref is not None:
             m.geom_solref[:] = self.contact_solref
-        feet = {name2id(m, mujoco.mjtObj.mjOBJ_BODY, robot.foot_link(side)) for side in ("left", "right")}
+        self._foot_bodies = tuple(
+            name2id(m, mujoco.mjtObj.mjOBJ_BODY, robot.foot_link(side)) for side in ("left", "right")
+        )
+        feet = set(self._foot_bodies)
         for g in (g for g in range(m.ngeom) if int(m.geom_bodyid[g]) in feet):  # torsional / rolling friction
             contact = foot_contact(m.geom_friction[g], self.torsional_friction, self.rolling_friction)
             if contact is not None:
@@ -292,6 +296,20 @@ class MujocoEngineSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):
         if data.ncon == 0:
             return False
         return bool(self._obstacle_mask[data.contact.geom].any())
+
+    def sole_forces(self) -> tuple[float, float]:
+        m, data = self.mj_model_data()
+        forces = [0.0, 0.0]
+        if data.ncon == 0:
+            return 0.0, 0.0
+        bodies = m.geom_bodyid[data.contact.geom]  # (ncon, 2)
+        wrench = np.zeros(6)
+        for i, pair in enumerate(bodies.tolist()):
+            for side, body in enumerate(self._foot_bodies):
+                if body in pair:
+                    mujoco.mj_contactForce(m, data, i, wrench)  # in the contact frame: [0] = normal
+                    forces[side] += float(wrench[0])
+        return forces[0], forces[1]
 
     def sim_error(self) -> str | None:
         s = self.state
