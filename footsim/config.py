@@ -240,7 +240,7 @@ def env_config(
     """The env's groups as plain dicts, composed from ``conf/env.yaml`` in one go; ``None`` = the
     group's default there (``walk``: the chosen backend's); mappings merge over their base preset."""
     specs = {
-        "backend": {"name": backend} if isinstance(backend, str) else backend,
+        "backend": backend,  # a name is a preset (conf/backend/<name>.yaml, e.g. mujoco or mujoco_v0)
         "task": task,
         "noise": noise,
         "robot": robot,

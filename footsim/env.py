@@ -222,6 +222,22 @@ class FootstepEnv(gym.Env):
         return info
 
 
+#: FootstepNav-v0's backend presets: footsim 0.x's tuned 3D settings (conf/backend/*_v0.yaml).
+V0_BACKENDS = {"mujoco": "mujoco_v0", "dm_control": "dm_control_v0", "pybullet": "pybullet_v0"}
+V0_ROBOT = "wolfgang_simplified"
+
+
+def footstep_nav_v0(backend: str | Mapping = "pymunk", robot: str | Mapping | None = None, **kwargs) -> FootstepEnv:
+    """``footsim/FootstepNav-v0``: footsim 0.x's setup, kept so old results can be rerun and compared
+    with FootstepNav-v1 (the default ``FootstepEnv``).  The simplified Wolfgang-OP
+    (``robot=wolfgang_simplified``) and, on a 3D backend named by a string, that backend's v0 preset
+    (``backend=mujoco_v0`` …: a 10 ms timestep, contact and servo values tuned for the old model, and
+    its walk ``footsim_slow``).  A backend mapping is used as given."""
+    if isinstance(backend, str):
+        backend = V0_BACKENDS.get(backend, backend)
+    return FootstepEnv(backend=backend, robot=V0_ROBOT if robot is None else robot, **kwargs)
+
+
 def make_env(cfg, scenes: list[Scene] | None = None, render_mode: str | None = None) -> FootstepEnv:
     """Build an env from a composed Hydra config (groups ``backend task noise robot walk``)."""
     plain = fconf.to_plain(cfg)

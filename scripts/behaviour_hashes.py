@@ -10,6 +10,8 @@ Each fingerprint is a SHA-256 over the exact float64 bytes of what the code comp
   localization noise and ``randomization=default`` (observations, rewards, poses, outcomes);
 * ``rollout_pymunk_plain``: a 200-step 2D rollout of the default env (no obstacles).
 
+All of them for ``footsim/FootstepNav-v1`` and, prefixed ``v0:``, for ``footsim/FootstepNav-v0``.
+
 ``check=FILE`` compares with a recorded file and exits 1 naming every fingerprint that differs.
 Only public surfaces are used, so the script runs unchanged before and after a refactoring.
 """
@@ -25,7 +27,7 @@ import numpy as np
 
 import footsim  # noqa: F401  (registers the env)
 
-ENV_ID = "footsim/FootstepNav-v0"
+ENVS = {"": "footsim/FootstepNav-v1", "v0:": "footsim/FootstepNav-v0"}
 
 
 def _digest(chunks) -> str:
@@ -38,8 +40,8 @@ def _digest(chunks) -> str:
     return h.hexdigest()
 
 
-def walk_engine_hash(n: int = 300) -> str:
-    env = gym.make(ENV_ID, backend="mujoco").unwrapped
+def walk_engine_hash(env_id: str, n: int = 300) -> str:
+    env = gym.make(env_id, backend="mujoco").unwrapped
     try:
         engine = env.backend.engine
         limits = env.robot.step_limits
@@ -57,8 +59,10 @@ def walk_engine_hash(n: int = 300) -> str:
     return _digest(chunks)
 
 
-def rollout_hash(backend: str, steps: int, obstacles: bool, noise: str, randomization: str, seed: int) -> str:
-    env = gym.make(ENV_ID, backend=backend, obstacles=obstacles, noise=noise, randomization=randomization)
+def rollout_hash(
+    env_id: str, backend: str, steps: int, obstacles: bool, noise: str, randomization: str, seed: int
+) -> str:
+    env = gym.make(env_id, backend=backend, obstacles=obstacles, noise=noise, randomization=randomization)
     chunks = []
     try:
         rng = np.random.default_rng(seed)
@@ -77,11 +81,15 @@ def rollout_hash(backend: str, steps: int, obstacles: bool, noise: str, randomiz
 
 
 def fingerprints(backends: list[str]) -> dict[str, str]:
-    out = {"walk_engine": walk_engine_hash()}
-    for backend in backends:
-        out[f"rollout_{backend}"] = rollout_hash(backend, 25, True, "localization", "default", seed=7)
-        print(f"{backend}: done", file=sys.stderr, flush=True)
-    out["rollout_pymunk_plain"] = rollout_hash("pymunk", 200, False, "none", "none", seed=3)
+    out = {}
+    for prefix, env_id in ENVS.items():
+        out[f"{prefix}walk_engine"] = walk_engine_hash(env_id)
+        for backend in backends:
+            out[f"{prefix}rollout_{backend}"] = rollout_hash(
+                env_id, backend, 25, True, "localization", "default", seed=7
+            )
+            print(f"{env_id} {backend}: done", file=sys.stderr, flush=True)
+        out[f"{prefix}rollout_pymunk_plain"] = rollout_hash(env_id, "pymunk", 200, False, "none", "none", seed=3)
     return out
 
 

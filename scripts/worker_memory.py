@@ -26,13 +26,13 @@ import footsim  # noqa: F401  (registers the env)
 
 
 def make(backend: str):
-    return lambda: gym.make("footsim/FootstepNav-v0", backend=backend)
+    return lambda: gym.make("footsim/FootstepNav-v1", backend=backend)
 
 
 _ONE_ENV = """
 import sys, gymnasium as gym, psutil
 import footsim
-env = gym.make("footsim/FootstepNav-v0", backend=sys.argv[1])
+env = gym.make("footsim/FootstepNav-v1", backend=sys.argv[1])
 env.reset(seed=0)
 for _ in range(30):
     if any(env.step(env.action_space.sample())[2:4]):

@@ -21,7 +21,7 @@ from footsim.scene import Obstacle, Scene  # noqa: E402
 from footsim.tasks.nav import tilted_over
 from footsim.walk.footsteps import DoubleStep  # noqa: E402
 
-ENV_ID = "footsim/FootstepNav-v0"
+ENV_ID = "footsim/FootstepNav-v1"
 BACKENDS = ["pymunk", "mujoco", "dm_control", "pybullet"]
 SIMULATOR = {"pymunk": "pymunk", "mujoco": "mujoco", "dm_control": "dm_control", "pybullet": "pybullet"}
 EMPTY = Scene(goal=Pose2D(100.0, 0.0, 0.0))

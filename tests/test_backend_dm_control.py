@@ -291,12 +291,12 @@ import sys
 import gymnasium as gym
 import footsim
 EGL = "dm_control._render.pyopengl.egl_renderer"
-env = gym.make("footsim/FootstepNav-v0", backend="dm_control")
+env = gym.make("footsim/FootstepNav-v1", backend="dm_control")
 env.reset(seed=0)
 env.step(env.action_space.sample())
 env.close()
 print("egl before rendering:", EGL in sys.modules)
-env = gym.make("footsim/FootstepNav-v0", backend="dm_control", render_mode="rgb_array")
+env = gym.make("footsim/FootstepNav-v1", backend="dm_control", render_mode="rgb_array")
 env.reset(seed=0)
 frame = env.render()
 env.close()

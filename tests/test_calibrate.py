@@ -86,7 +86,7 @@ def test_env_with_execution_model(tmp_path):
 
     path = tmp_path / "m.json"
     path.write_text(json.dumps(_model(np.diag([0.5, 1.0, 1.0]))))
-    env = gym.make("footsim/FootstepNav-v0", backend={"name": "pymunk", "execution_model": str(path)})
+    env = gym.make("footsim/FootstepNav-v1", backend={"name": "pymunk", "execution_model": str(path)})
     env.reset(seed=0)
     _, _, _, _, info = env.step(np.array([1, 0, 0, 1, 0, 0], dtype=np.float32))
     assert 0.0 < info["pose"][0] < 0.2

@@ -56,7 +56,7 @@ def test_the_walk_default_is_the_backends(backend, walk):
 
 
 def test_keyword_api_merges_mappings_over_presets():
-    env = gym.make("footsim/FootstepNav-v0", task={"name": "nav_obstacles", "max_steps": 200}, noise={"sigma_x": 0.1})
+    env = gym.make("footsim/FootstepNav-v1", task={"name": "nav_obstacles", "max_steps": 200}, noise={"sigma_x": 0.1})
     try:
         config = env.unwrapped.task.config
         assert config.max_steps == 200 and config.obstacles and env.observation_space.shape == (53,)

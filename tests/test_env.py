@@ -14,7 +14,7 @@ from footsim.scene import Obstacle, Scene
 
 @pytest.mark.parametrize("kwargs", [{}, {"obstacles": True}, {"obstacles": True, "noise": "localization"}])
 def test_env_checkers_pass(kwargs):
-    env = gym.make("footsim/FootstepNav-v0", **kwargs)
+    env = gym.make("footsim/FootstepNav-v1", **kwargs)
     gym_check_env(env.unwrapped, skip_render_check=True)
     sb3_check_env(FootstepEnv(**kwargs))
 
@@ -120,7 +120,7 @@ sys.meta_path.insert(0, Missing())
 import gymnasium as gym
 import footsim
 try:
-    gym.make("footsim/FootstepNav-v0", backend=sys.argv[1])
+    gym.make("footsim/FootstepNav-v1", backend=sys.argv[1])
 except ImportError as err:
     print("ImportError:", err)
 """

@@ -20,7 +20,7 @@ from footsim.robots.registry import ROBOTS, get_robot, register_robot
 from footsim.scene import Scene
 from footsim.walk.footsteps import DoubleStep, FootstepGeometry
 
-ENV = "footsim/FootstepNav-v0"
+ENV = "footsim/FootstepNav-v1"
 
 
 # -- 1. add a backend ---------------------------------------------------------------------------

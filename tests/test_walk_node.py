@@ -270,17 +270,15 @@ def _bumped_backend(name: str, phase_reset: bool, bump: bool):
     if name == "mujoco":
         import mujoco
 
-        # The ball's pool geom, grown into the sphere (the world body's bounding-volume tree was
-        # compiled with the pool's sizes, so the midphase is switched off for the grown geom).
+        # The ball's pool geom (its own body), grown into the sphere and sunk into the floor.
         scene = Scene(goal=EMPTY.goal, ball=Obstacle(BUMP_X, BUMP_Y, 0.05)) if bump else EMPTY
         backend.reset(scene, np.random.default_rng(0))
         if bump:
             m, d = backend.sim.mj_model_data()
             g = int(backend.sim.obstacle_geoms[-1])
             r = BUMP_RADIUS
-            m.geom_size[g], m.geom_pos[g] = (r, 0.0, 0.0), (BUMP_X, BUMP_Y, BUMP_HEIGHT - r)
+            m.geom_size[g], m.body_pos[m.geom_bodyid[g]] = (r, 0.0, 0.0), (BUMP_X, BUMP_Y, BUMP_HEIGHT - r)
             m.geom_rbound[g], m.geom_aabb[g] = r, (0.0, 0.0, 0.0, r, r, r)
-            m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_MIDPHASE
             mujoco.mj_forward(m, d)
     else:
         import pybullet as p

@@ -15,14 +15,14 @@ def bench_env2d(steps: int = 20000, repeats: int = 5, wrapped: bool = False) -> 
     """2D env steps/s with random actions (episodes reset as they end), without and with rays.
 
     Measures the raw ``FootstepEnv``; ``wrapped=True`` adds rows for the env built by
-    ``gymnasium.make("footsim/FootstepNav-v0")`` (its passive checker and order-enforcing /
+    ``gymnasium.make("footsim/FootstepNav-v1")`` (its passive checker and order-enforcing /
     episode-statistics wrappers run on every step)."""
 
     def make_raw(**kwargs):
         return FootstepEnv(**kwargs)
 
     def make_gym(**kwargs):
-        return gym.make("footsim/FootstepNav-v0", **kwargs)
+        return gym.make("footsim/FootstepNav-v1", **kwargs)
 
     variants = [("", make_raw)] + ([(" [gymnasium.make]", make_gym)] if wrapped else [])
     rows = []
