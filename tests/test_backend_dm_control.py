@@ -73,7 +73,8 @@ def test_reset_levels_the_soles_on_the_floor(backend):
     )
     model = backend.sim.mjcf_model  # found by name through dm_control's own API
     soles = backend.sim.physics.bind([model.find("site", sole_site(s)) for s in ("left", "right")])
-    np.testing.assert_allclose(soles.xpos[:, 2].min(), 0.0, atol=1e-9)
+    # The feet's lowest points (the cleat tips) on the floor: the sole frames that far below it.
+    np.testing.assert_allclose(soles.xpos[:, 2].min(), -backend.robot.sole_clearance("left"), atol=1e-9)
     np.testing.assert_allclose(soles.xmat[0].reshape(3, 3)[2], (0.0, 0.0, 1.0), atol=1e-9)  # left sole level
 
 
@@ -111,12 +112,14 @@ def test_model_options_match_the_mujoco_backend(backend):
     from footsim.backends.mujoco_family.mujoco_sim import MujocoBackend
     from footsim.config import load_preset
 
-    cfg = load_preset("backend", "dm_control")
+    # FootstepNav-v0's preset: every model option set (rolling and torsional friction included).
+    cfg = load_preset("backend", "dm_control_v0")
     options = {
         k: cfg[k]
         for k in (
             "torsional_friction",
             "rolling_friction",
+            "contact_solref",
             "servo_kp_scale",
             "servo_damping_scale",
             "servo_kv",
@@ -125,13 +128,15 @@ def test_model_options_match_the_mujoco_backend(backend):
             "integrator",
         )
     }
-    ours = backend.sim.physics.model.ptr
+    mine = DmControlBackend(backend.robot, backend.walk, **options)
+    ours = mine.sim.physics.model.ptr
     theirs = MujocoBackend(backend.robot, backend.walk, **options)  # the MuJoCo backend given the same options
     try:
         ref = theirs.sim.model
         for field in (
             "geom_condim",
             "geom_friction",
+            "geom_solref",
             "actuator_gainprm",
             "actuator_biasprm",
             "dof_damping",
@@ -142,15 +147,16 @@ def test_model_options_match_the_mujoco_backend(backend):
             np.testing.assert_allclose(getattr(ours, field), getattr(ref, field), rtol=1e-5, err_msg=field)
         assert ours.opt.integrator == ref.opt.integrator and ours.opt.timestep == ref.opt.timestep
         feet = [
-            backend.sim.physics.bind(g).element_id
+            mine.sim.physics.bind(g).element_id
             for s in ("left", "right")
-            for g in backend.sim.mjcf_model.find("body", backend.robot.foot_link(s)).get_children("geom")
+            for g in mine.sim.mjcf_model.find("body", backend.robot.foot_link(s)).get_children("geom")
         ]
         assert feet and all(ours.geom_condim[g] == 6 for g in feet)  # torsional and rolling friction
         assert all(ours.geom_friction[g, 1] == pytest.approx(cfg["torsional_friction"]) for g in feet)
         assert all(ours.geom_friction[g, 2] == pytest.approx(cfg["rolling_friction"]) for g in feet)
     finally:
         theirs.close()
+        mine.close()
     with pytest.raises(ValueError, match="servo_kp_scale"):
         DmControlBackend(backend.robot, backend.walk, servo_kp_scale=0.0)
     with pytest.raises(ValueError, match="integrator"):
@@ -204,13 +210,14 @@ def test_obstacle_pool_is_placed_and_parked(backend):
     backend.reset(scene, np.random.default_rng(0))
     names = [f"obstacle{i}" for i in range(N_CYLINDERS)] + ["ball"]
     pool = sim.physics.bind([sim.mjcf_model.find("geom", n) for n in names])
-    np.testing.assert_allclose(pool.pos[0, :2], (1.0, 0.5))
+    bodies = sim.physics.bind([sim.mjcf_model.find("body", n) for n in names])  # one body per obstacle
+    np.testing.assert_allclose(bodies.pos[0, :2], (1.0, 0.5))
     np.testing.assert_allclose(pool.size[1, 0], 0.3)
-    np.testing.assert_allclose(pool.pos[-1], (1.5, 0.0, 0.075))
+    np.testing.assert_allclose(bodies.pos[-1], (1.5, 0.0, 0.075))
     assert all(pool.contype[2:N_CYLINDERS] == 0) and all(pool.rgba[2:N_CYLINDERS, 3] == 0)
     assert not sim.obstacle_contact()
     backend.reset(EMPTY, np.random.default_rng(0))  # everything parked again
-    assert (pool.contype == 0).all() and (pool.pos[:, 2] < -50).all()
+    assert (pool.contype == 0).all() and (bodies.pos[:, 2] < -50).all()
     with pytest.raises(ValueError, match="at most"):
         sim.set_obstacles(Scene(goal=Pose2D(), obstacles=tuple(Obstacle(i, 5.0, 0.1) for i in range(N_CYLINDERS + 1))))
 

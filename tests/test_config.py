@@ -47,7 +47,7 @@ def test_dm_control_inherits_the_mujoco_values():
 
 
 @pytest.mark.parametrize(
-    "backend, walk", [("pymunk", "default"), ("mujoco", "footsim_slow"), ("pybullet", "footsim_slow")]
+    "backend, walk", [("pymunk", "default"), ("mujoco", "bitbots_sim"), ("pybullet", "bitbots_sim")]
 )
 def test_the_walk_default_is_the_backends(backend, walk):
     expected = {k: v for k, v in _raw("walk", walk).items() if k != "defaults"}

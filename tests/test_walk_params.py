@@ -329,11 +329,13 @@ def test_facts_table_parser_reads_a_small_table():
 # --- footsim's own tuned gait as a named preset --------------------------------------------------
 
 
-def test_footsim_slow_is_the_tuned_gait_the_3d_backends_walk_by_default():
+def test_footsim_slow_is_the_v0_gait_and_bitbots_sim_the_3d_default():
     from footsim.config import load_preset
 
     slow = load_preset("walk", "footsim_slow")
     assert slow["freq"] == 0.819559 and slow["trunk_height"] == 0.360584  # the tuned 0.82 Hz gait
     assert WalkParams.from_mapping(slow).double_step_duration == pytest.approx(1.0 / 0.819559)
+    sim = load_preset("walk", "bitbots_sim")
     for backend in ("mujoco", "dm_control", "pybullet"):
-        assert load_preset("walk", backend=backend) == slow, backend
+        assert load_preset("walk", backend=backend) == sim, backend
+        assert load_preset("walk", backend=f"{backend}_v0") == slow, backend

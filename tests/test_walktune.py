@@ -27,10 +27,10 @@ def _compose(*overrides, hydra=False):
 
 def test_walktune_composes_the_backends_walk_and_the_hpo_presets():
     cfg = _compose("backend=pybullet")
-    mujoco_walk = OmegaConf.load(conf_dir() / "walk" / "footsim_slow.yaml")
-    # conf/walk/pybullet.yaml is `defaults: [mujoco, _self_]`, mujoco.yaml `defaults: [footsim_slow, _self_]`:
+    mujoco_walk = OmegaConf.load(conf_dir() / "walk" / "bitbots_sim.yaml")
+    # conf/walk/pybullet.yaml is `defaults: [mujoco, _self_]`, mujoco.yaml `defaults: [bitbots_sim, _self_]`:
     # Hydra must compose MuJoCo's gait
-    assert cfg.backend.name == "pybullet" and cfg.walk.trunk_height == mujoco_walk.trunk_height == 0.360584
+    assert cfg.backend.name == "pybullet" and cfg.walk.trunk_height == mujoco_walk.trunk_height == 0.394780002666927
     assert cfg.walk.freq == mujoco_walk.freq and "defaults" not in cfg.walk
     for backend in ("pybullet", "mujoco", "dm_control"):
         cfg = _compose(f"+hpo=walk_{backend}", hydra=True)

@@ -17,15 +17,15 @@ import time
 
 import numpy as np
 
-from footsim.calibration.walkcheck import make_backend
+from footsim.calibration.walkcheck import REQUIRED_SHARE, make_backend
 from footsim.geometry import Pose2D
 from footsim.scene import Scene
 from footsim.tasks.nav import tilted_over
 from footsim.walk.footsteps import DoubleStep
 
-#: The benchmark's double steps (actions in [-1, 1]), cycled: forward at half the limit with a
-#: gentle turn, so every backend can walk it without falling.
-PATTERN = np.array([[0.5, 0.0, 0.1, 0.5, 0.0, 0.1], [0.5, 0.0, -0.1, 0.5, 0.0, -0.1]])
+#: The benchmark's double steps (actions in [-1, 1]), cycled: forward at 0.4 of the limits, the
+#: walk check's required "forward" sequence, which every backend walks without falling.
+PATTERN = np.array([[REQUIRED_SHARE, 0.0, 0.0, REQUIRED_SHARE, 0.0, 0.0]])
 
 
 def _rss_mb() -> float:
