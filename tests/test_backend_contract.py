@@ -144,6 +144,23 @@ def test_close_twice_is_harmless(name):
 
 
 @pytest.mark.parametrize("name", BACKENDS)
+def test_a_closed_env_refuses_step_reset_and_render_naming_close(name):
+    _require(name)
+    env = gym.make(ENV_ID, backend=name, obstacles=True, render_mode="rgb_array")
+    env.reset(seed=0)
+    env.step(FORWARD)
+    env.close()
+    for verb, call in (
+        ("step", lambda: env.step(FORWARD)),
+        ("reset", lambda: env.reset(seed=1)),
+        ("render", env.render),
+    ):
+        with pytest.raises(RuntimeError, match=rf"^{verb}\(\) called after close\(\): this env's {name} backend"):
+            call()
+    env.close()  # still harmless
+
+
+@pytest.mark.parametrize("name", BACKENDS)
 def test_an_unknown_option_is_named(name):
     _require(name)
     with pytest.raises(ValueError, match=rf"backend {name}: unknown key\(s\) \['no_such_option'\]; valid: \[.*'name'"):

@@ -1,5 +1,6 @@
 """End-to-end runs through the installed command lines (tiny budgets)."""
 
+import csv
 import json
 import subprocess
 import sys
@@ -99,6 +100,54 @@ def test_scenes_train_eval_resume(tmp_path):
     assert "ignoring agent.learning_rate=0.5" in out  # the saved config decides, and it says so
     info = json.loads((run_dir / "train_info.json").read_text())
     assert info["num_timesteps"] >= 512
+
+
+@pytest.fixture(scope="module")
+def nav_run(tmp_path_factory) -> Path:
+    """A tiny obstacle-free run (17-D observation), trained once for the tests that only read it."""
+    run_dir = tmp_path_factory.mktemp("nav_run") / "run"
+    run("footsim-train", *TINY, "eval.after_train=false", f"hydra.run.dir={run_dir}")
+    return run_dir
+
+
+def test_eval_refuses_a_task_the_policy_cannot_read_and_honours_one_it_can(nav_run, tmp_path):
+    refused = tmp_path / "refused"
+    proc = run(
+        "footsim-eval", f"run={nav_run}", "task=nav_obstacles", "n_scenes=2", f"hydra.run.dir={refused}", check=False
+    )
+    assert proc.returncode != 0
+    message = proc.stdout + proc.stderr
+    assert f"task=nav_obstacles cannot be evaluated with the policy of {nav_run}" in message
+    assert "goal_and_actions 17 = 17 inputs (its task nav)" in message and "rays 36 = 53 inputs" in message
+    assert not (refused / "episodes.csv").exists()
+
+    # the same observation: the task is taken as given (the run was trained with max_steps 100)
+    honoured = tmp_path / "honoured"
+    run("footsim-eval", f"run={nav_run}", "task=nav", "task.max_steps=2", "n_scenes=3", "plot=false",
+        f"hydra.run.dir={honoured}")  # fmt: skip
+    steps = [int(row["steps"]) for row in csv.DictReader((honoured / "episodes.csv").open())]
+    assert len(steps) == 3 and max(steps) == 2
+
+
+def test_eval_says_what_it_uses_instead_of_what_it_does_not_take_as_given(nav_run, tmp_path, capsys):
+    from omegaconf import OmegaConf
+
+    from footsim.config import conf_dir
+    from footsim.rl.evaluate import eval_run_config
+
+    run_cfg = eval_run_config(nav_run, OmegaConf.create({"backend": {"name": "mujoco"}}))
+    out = capsys.readouterr().out
+    assert out.startswith("backend=mujoco: walking with the mujoco backend's walk preset (conf/walk/mujoco.yaml); ")
+    assert "ignoring the run's walk (walk." in out
+    assert (
+        run_cfg.backend.name == "mujoco" and run_cfg.walk.freq == OmegaConf.load(conf_dir() / "walk/mujoco.yaml").freq
+    )
+    eval_run_config(nav_run, OmegaConf.create({"backend": {"name": "pymunk"}}))
+    assert capsys.readouterr().out == ""  # the run's own backend and walk: nothing to say
+
+    out = run("footsim-eval", f"run={nav_run}", "controller=velocity", "n_scenes=1", "plot=false",
+              f"hydra.run.dir={tmp_path}").stdout  # fmt: skip
+    assert f"controller=velocity: evaluating the baseline; ignoring run={nav_run}" in out
 
 
 def test_baseline_evaluation_applies_the_randomization_preset(tmp_path):

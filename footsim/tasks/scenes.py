@@ -81,7 +81,7 @@ class SceneSampler:
             if not self.obstacles:
                 return Scene(goal)
             ball = Obstacle(*goal.transform_point(self.ball_offset, 0.0), self.ball_radius)
-            if math.hypot(ball.x, ball.y) < ball.r + self.robot_radius:
+            if not clear_of_footprint(ball, 0.0, 0.0, self.robot_radius):
                 continue  # the robot would start touching the ball
             obstacles = [self._obstacle_near(0.0, 0.0, goal, rng) for _ in range(int(self.n_obstacles_robot))]
             obstacles += [self._obstacle_near(goal.x, goal.y, goal, rng) for _ in range(int(self.n_obstacles_goal))]
@@ -92,11 +92,43 @@ class SceneSampler:
         while True:
             dx, dy = sigma * normal(), sigma * normal()  # rng.normal(0, sigma, size=2), see sample()
             r = uniform(rng, self.obstacle_radius_min, self.obstacle_radius_max)
-            x, y = cx + dx, cy + dy
-            clear_of_start = math.hypot(x, y) >= r + self.robot_radius
-            clear_of_goal = math.hypot(x - goal.x, y - goal.y) >= r + self.robot_radius
-            if clear_of_start and clear_of_goal:
-                return Obstacle(x, y, r)
+            obstacle = Obstacle(cx + dx, cy + dy, r)
+            clear_of_start = clear_of_footprint(obstacle, 0.0, 0.0, self.robot_radius)
+            if clear_of_start and clear_of_footprint(obstacle, goal.x, goal.y, self.robot_radius):
+                return obstacle
+
+    def footprint_overlap(self, scene: Scene) -> str | None:
+        """What of ``scene`` breaks the rule :meth:`sample` keeps (an obstacle on the robot's start
+        footprint or on the robot standing at the goal, the ball on the start footprint), or None."""
+        footprint = f"(a circle of task.scenes.robot_radius={self.robot_radius:g} m"
+        for k, o in enumerate(scene.obstacles):
+            if not clear_of_footprint(o, 0.0, 0.0, self.robot_radius):
+                return f"obstacle {k} {_circle_text(o)} overlaps the robot's start footprint {footprint} at the origin)"
+            if not clear_of_footprint(o, scene.goal.x, scene.goal.y, self.robot_radius):
+                where = f"at the goal ({scene.goal.x:g}, {scene.goal.y:g}))"
+                return f"obstacle {k} {_circle_text(o)} overlaps the robot's footprint at the goal {footprint} {where}"
+        if scene.ball is not None and not clear_of_footprint(scene.ball, 0.0, 0.0, self.robot_radius):
+            return (
+                f"the ball {_circle_text(scene.ball)} overlaps the robot's start footprint {footprint} at the origin)"
+            )
+        return None
+
+    def check_scenes(self, scenes: list[Scene], where: str = "") -> None:
+        """Refuse, naming the first scene's index (and ``where``, e.g. the file), a scene the
+        robot cannot start or finish in (:meth:`footprint_overlap`)."""
+        for i, scene in enumerate(scenes):
+            problem = self.footprint_overlap(scene)
+            if problem is not None:
+                raise ValueError(f"{where}scene {i}: {problem}")
+
+
+def clear_of_footprint(circle: Obstacle, cx: float, cy: float, robot_radius: float) -> bool:
+    """Whether ``circle`` keeps clear of the robot's footprint, a circle of ``robot_radius`` at (cx, cy)."""
+    return math.hypot(circle.x - cx, circle.y - cy) >= circle.r + robot_radius
+
+
+def _circle_text(circle: Obstacle) -> str:
+    return f"(x={circle.x:g}, y={circle.y:g}, r={circle.r:g})"
 
 
 def uniform(rng: np.random.Generator, low: float, high: float) -> float:
