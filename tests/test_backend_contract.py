@@ -38,6 +38,11 @@ def _make(name: str, **kwargs):
     return gym.make(ENV_ID, backend=name, **kwargs)
 
 
+# The tests share a module-scoped backend or env whose state one hands on to the next: under xdist
+# they run on one worker, in file order (--dist loadgroup).
+pytestmark = pytest.mark.xdist_group("test_backend_contract")
+
+
 @pytest.fixture(scope="module", params=BACKENDS)
 def backend(request) -> Backend:
     env = _make(request.param)

@@ -102,15 +102,9 @@ def test_scenes_train_eval_resume(tmp_path):
     assert info["num_timesteps"] >= 512
 
 
-@pytest.fixture(scope="module")
-def nav_run(tmp_path_factory) -> Path:
-    """A tiny obstacle-free run (17-D observation), trained once for the tests that only read it."""
-    run_dir = tmp_path_factory.mktemp("nav_run") / "run"
-    run("footsim-train", *TINY, "eval.after_train=false", f"hydra.run.dir={run_dir}")
-    return run_dir
-
-
-def test_eval_refuses_a_task_the_policy_cannot_read_and_honours_one_it_can(nav_run, tmp_path):
+@pytest.mark.xdist_group("tiny_runs")
+def test_eval_refuses_a_task_the_policy_cannot_read_and_honours_one_it_can(tiny_runs, tmp_path):
+    nav_run = tiny_runs("ppo", "agent=ppo")  # obstacle-free: a 17-D observation
     refused = tmp_path / "refused"
     proc = run(
         "footsim-eval", f"run={nav_run}", "task=nav_obstacles", "n_scenes=2", f"hydra.run.dir={refused}", check=False
@@ -129,11 +123,14 @@ def test_eval_refuses_a_task_the_policy_cannot_read_and_honours_one_it_can(nav_r
     assert len(steps) == 3 and max(steps) == 2
 
 
-def test_eval_says_what_it_uses_instead_of_what_it_does_not_take_as_given(nav_run, tmp_path, capsys):
+@pytest.mark.xdist_group("tiny_runs")
+def test_eval_says_what_it_uses_instead_of_what_it_does_not_take_as_given(tiny_runs, tmp_path, capsys):
     from omegaconf import OmegaConf
 
     from footsim.config import conf_dir
     from footsim.rl.evaluate import eval_run_config
+
+    nav_run = tiny_runs("ppo", "agent=ppo")
 
     run_cfg = eval_run_config(nav_run, OmegaConf.create({"backend": {"name": "mujoco"}}))
     out = capsys.readouterr().out

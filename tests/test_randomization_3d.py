@@ -30,6 +30,11 @@ def _available(name):
     return True
 
 
+# The tests share a module-scoped backend or env whose state one hands on to the next: under xdist
+# they run on one worker, in file order (--dist loadgroup).
+pytestmark = pytest.mark.xdist_group("test_randomization_3d")
+
+
 @pytest.fixture(scope="module", params=BACKENDS)
 def env(request):
     if not _available(request.param):
