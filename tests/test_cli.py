@@ -139,8 +139,15 @@ def test_eval_says_what_it_uses_instead_of_what_it_does_not_take_as_given(tiny_r
     assert (
         run_cfg.backend.name == "mujoco" and run_cfg.walk.freq == OmegaConf.load(conf_dir() / "walk/mujoco.yaml").freq
     )
-    eval_run_config(nav_run, OmegaConf.create({"backend": {"name": "pymunk"}}))
-    assert capsys.readouterr().out == ""  # the run's own backend and walk: nothing to say
+    # a run with its own gait, evaluated on its own backend with another option: it keeps its walk
+    tuned = OmegaConf.load(nav_run / "config.yaml")
+    tuned.walk.freq = 1.5
+    (tmp_path / "tuned").mkdir()
+    OmegaConf.save(tuned, tmp_path / "tuned" / "config.yaml")
+    backend = {"name": "pymunk", "collision_distance": 0.25}
+    run_cfg = eval_run_config(tmp_path / "tuned", OmegaConf.create({"backend": backend}))
+    assert capsys.readouterr().out == ""  # nothing replaced, nothing to say
+    assert run_cfg.walk.freq == 1.5 and run_cfg.backend.collision_distance == 0.25
 
     out = run("footsim-eval", f"run={nav_run}", "controller=velocity", "n_scenes=1", "plot=false",
               f"hydra.run.dir={tmp_path}").stdout  # fmt: skip

@@ -254,9 +254,9 @@ def eval_run_config(run_dir: Path, cfg_eval) -> DictConfig:
     on the command line (``backend``, ``task``, ``noise``, ``randomization``; a mapping merges
     over its preset) in place of the run's.
 
-    A policy moved to another backend walks with that backend's walk preset; when that differs
-    from the run's walk, a note says so.  A task whose observation differs from the run's (rays,
-    IMU, path hint) is refused: the policy cannot read it.
+    On another backend the policy walks with that backend's walk preset (:func:`walk_on_backend`),
+    and a note says so when that differs from the run's walk.  A task whose observation differs
+    from the run's (rays, IMU, path hint) is refused: the policy cannot read it.
     """
     run_cfg = load_run_config(run_dir)
     OmegaConf.set_struct(run_cfg, False)
@@ -271,13 +271,9 @@ def eval_run_config(run_dir: Path, cfg_eval) -> DictConfig:
                 f"{_layout_text(asked)}. Leave task= out to evaluate on the run's task."
             )
         run_cfg.task = task
-    for group in ("backend", "noise", "randomization"):
-        if cfg_eval.get(group) is not None:
-            run_cfg[group] = fconf.load_preset(group, cfg_eval[group])
-    if cfg_eval.get("backend") is not None:  # a policy moved to another backend walks with that backend's gait
-        name = run_cfg.backend.name
-        walk, run_walk = fconf.load_preset("walk", backend=name), fconf.to_plain(run_cfg.walk)
-        differing = sorted(k for k in set(walk) | set(run_walk) if walk.get(k) != run_walk.get(k))
+    if cfg_eval.get("backend") is not None:
+        name = cfg_eval.backend.name
+        walk, differing = walk_on_backend(run_cfg, name)
         if differing:
             shown = ", ".join(f"walk.{k}" for k in differing[:4]) + (", …" if len(differing) > 4 else "")
             note_not_honoured(
@@ -286,7 +282,21 @@ def eval_run_config(run_dir: Path, cfg_eval) -> DictConfig:
                 f"the run's walk ({shown} differ)",
             )
         run_cfg.walk = walk
+    for group in ("backend", "noise", "randomization"):
+        if cfg_eval.get(group) is not None:
+            run_cfg[group] = fconf.load_preset(group, cfg_eval[group])
     return run_cfg
+
+
+def walk_on_backend(run_cfg, backend: str) -> tuple[dict, list[str]]:
+    """The walk a run's policy walks with on ``backend``, and the walk keys in which it differs from
+    the run's: on its training backend the run's own walk, on another that backend's walk preset
+    (``conf/walk/<backend>.yaml``; a gait is tuned per simulator)."""
+    run_walk = fconf.to_plain(run_cfg.walk)
+    if backend == run_cfg.backend.name:
+        return run_walk, []
+    walk = fconf.load_preset("walk", backend=backend)
+    return walk, sorted(k for k in set(walk) | set(run_walk) if walk.get(k) != run_walk.get(k))
 
 
 def _layout_text(layout: tuple[tuple[str, int], ...]) -> str:

@@ -99,23 +99,26 @@ class SceneSampler:
 
     def footprint_overlap(self, scene: Scene) -> str | None:
         """What of ``scene`` breaks the rule :meth:`sample` keeps (an obstacle on the robot's start
-        footprint or on the robot standing at the goal, the ball on the start footprint), or None."""
-        footprint = f"(a circle of task.scenes.robot_radius={self.robot_radius:g} m"
-        for k, o in enumerate(scene.obstacles):
-            if not clear_of_footprint(o, 0.0, 0.0, self.robot_radius):
-                return f"obstacle {k} {_circle_text(o)} overlaps the robot's start footprint {footprint} at the origin)"
-            if not clear_of_footprint(o, scene.goal.x, scene.goal.y, self.robot_radius):
-                where = f"at the goal ({scene.goal.x:g}, {scene.goal.y:g}))"
-                return f"obstacle {k} {_circle_text(o)} overlaps the robot's footprint at the goal {footprint} {where}"
-        if scene.ball is not None and not clear_of_footprint(scene.ball, 0.0, 0.0, self.robot_radius):
-            return (
-                f"the ball {_circle_text(scene.ball)} overlaps the robot's start footprint {footprint} at the origin)"
-            )
+        footprint or on the robot standing at the goal, the ball on the start footprint; the ball
+        lies at the goal's feet by design), or None."""
+        radius = f"(task.scenes.robot_radius={self.robot_radius:g} m)"
+        goal = scene.goal
+        footprints = (
+            ("the robot's start footprint at the origin", 0.0, 0.0),
+            (f"the robot's footprint at the goal ({goal.x:g}, {goal.y:g})", goal.x, goal.y),
+        )
+        for k, obstacle in enumerate(scene.obstacles):
+            for footprint, cx, cy in footprints:
+                if not clear_of_footprint(obstacle, cx, cy, self.robot_radius):
+                    return f"obstacle {k} {_circle_text(obstacle)} overlaps {footprint} {radius}"
+        ball = scene.ball
+        if ball is not None and not clear_of_footprint(ball, 0.0, 0.0, self.robot_radius):
+            return f"the ball {_circle_text(ball)} overlaps {footprints[0][0]} {radius}"
         return None
 
     def check_scenes(self, scenes: list[Scene], where: str = "") -> None:
-        """Refuse, naming the first scene's index (and ``where``, e.g. the file), a scene the
-        robot cannot start or finish in (:meth:`footprint_overlap`)."""
+        """Refuse a scene the robot cannot start or finish in (:meth:`footprint_overlap`), naming
+        the index of the first such scene (after ``where``, e.g. the argument's name)."""
         for i, scene in enumerate(scenes):
             problem = self.footprint_overlap(scene)
             if problem is not None:
