@@ -69,7 +69,10 @@ class FootstepEnv(gym.Env):
         preset (its ``name`` for backend, task and robot, else the group's default), and a key or
         type the group's schema (``footsim.schema``) does not allow fails naming the key.
         scenes: optional list of ``Scene`` to cycle through instead of sampling (evaluation);
-            a scene can also be passed per episode as ``reset(options={"scene": scene})``.
+            a scene can also be passed per episode as ``reset(options={"scene": scene})``.  A given
+            scene with an obstacle on the robot's start footprint or at the goal (or the ball on
+            the start footprint) is refused, as the sampler never draws one
+            (``SceneSampler.footprint_overlap``).
 
     Actions outside [-1, 1] are clipped; NaN or inf raise ``ValueError``.
     """
@@ -108,6 +111,12 @@ class FootstepEnv(gym.Env):
             raise
         self.limits = self.robot.step_limits
         self.render_mode = render_mode
+        if scenes is not None:
+            try:
+                self.sampler.check_scenes(list(scenes), where="scenes: ")
+            except ValueError:
+                self.backend.close()
+                raise
         self.fixed_scenes = list(scenes) if scenes is not None else None
         self._scene_index = 0
 
@@ -115,14 +124,22 @@ class FootstepEnv(gym.Env):
         self.observation_space = gym.spaces.Box(-1.0, 1.0, shape=(self.task.observation_size,), dtype=np.float32)
 
         self.scene: Scene | None = None
+        self.closed = False
         self._time = 0.0
         self._believed = Pose2D()
 
     # -- gymnasium API --------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Start an episode (gymnasium API).  A closed env stays closed: ``reset()`` after
+        :meth:`close` raises ``RuntimeError`` (the simulator is gone; make a new env)."""
+        if self.closed:
+            raise RuntimeError(self._closed_message("reset"))
         super().reset(seed=seed)
         options = options or {}
         if "scene" in options:
+            problem = self.sampler.footprint_overlap(options["scene"])
+            if problem is not None:
+                raise ValueError(f"reset(options={{'scene': ...}}): {problem}")
             self.scene = options["scene"]
         elif self.fixed_scenes is not None:
             self.scene = self.fixed_scenes[self._scene_index % len(self.fixed_scenes)]
@@ -155,8 +172,8 @@ class FootstepEnv(gym.Env):
         return self.task.observe(self._believed), self._info({})
 
     def step(self, action):
-        if self.scene is None:
-            raise RuntimeError("step() called before reset()")
+        if self.scene is None:  # not reset yet, or closed (close() forgets the scene)
+            raise RuntimeError(self._closed_message("step") if self.closed else "step() called before reset()")
         action = action_values(action)  # 6 finite floats clipped to [-1, 1]; raises otherwise
         double_step = DoubleStep.from_unit(action, self.limits)
         if self.randomizer.active:
@@ -174,6 +191,8 @@ class FootstepEnv(gym.Env):
     def render(self):
         if self.render_mode != "rgb_array":
             return None
+        if self.closed:
+            raise RuntimeError(self._closed_message("render"))
         rays = None
         config = self.task.config
         if config.obstacles:
@@ -189,7 +208,15 @@ class FootstepEnv(gym.Env):
         return self.backend.render(overlay)
 
     def close(self):
+        """Release the simulator; calling it again does nothing.  After it, ``reset``, ``step`` and
+        ``render`` raise ``RuntimeError``."""
         self.backend.close()
+        self.closed = True
+        self.scene = None
+
+    def _closed_message(self, verb: str) -> str:
+        backend = self.config["backend"]["name"]
+        return f"{verb}() called after close(): this env's {backend} backend is released; make a new env"
 
     # -- helpers --------------------------------------------------------------------------
     def _info(self, terms: dict, result=None) -> dict[str, Any]:

@@ -1,5 +1,5 @@
-"""Small I/O helpers shared by the command lines and the trainer: atomic file writes and
-``key=value`` argument parsing."""
+"""Small I/O helpers shared by the command lines and the trainer: atomic file writes,
+``key=value`` argument parsing and the note on a command-line request not honoured as given."""
 
 from __future__ import annotations
 
@@ -55,3 +55,10 @@ def parse_kv_args(argv: list[str], allowed: dict[str, object], command: str) -> 
             raise SystemExit(f"{command}: unknown key {key!r}; keys: {sorted(allowed)}")
         out[key] = value
     return out
+
+
+def note_not_honoured(cause: str, used: str, ignored: str) -> None:
+    """Say on stdout, in one line, that a command line's request is not taken as given: ``cause``
+    (what decides, e.g. ``resume`` or ``backend=mujoco``), what is ``used`` instead, and what is
+    ``ignored``, rather than dropping it silently."""
+    print(f"{cause}: {used}; ignoring {ignored}")

@@ -38,6 +38,11 @@ def _make(name: str, **kwargs):
     return gym.make(ENV_ID, backend=name, **kwargs)
 
 
+# The tests share a module-scoped backend or env whose state one hands on to the next: under xdist
+# they run on one worker, in file order (--dist loadgroup).
+pytestmark = pytest.mark.xdist_group("test_backend_contract")
+
+
 @pytest.fixture(scope="module", params=BACKENDS)
 def backend(request) -> Backend:
     env = _make(request.param)
@@ -141,6 +146,23 @@ def test_close_twice_is_harmless(name):
     backend = env.unwrapped.backend
     env.close()
     backend.close()
+
+
+@pytest.mark.parametrize("name", BACKENDS)
+def test_a_closed_env_refuses_step_reset_and_render_naming_close(name):
+    _require(name)
+    env = gym.make(ENV_ID, backend=name, obstacles=True, render_mode="rgb_array")
+    env.reset(seed=0)
+    env.step(FORWARD)
+    env.close()
+    for verb, call in (
+        ("step", lambda: env.step(FORWARD)),
+        ("reset", lambda: env.reset(seed=1)),
+        ("render", env.render),
+    ):
+        with pytest.raises(RuntimeError, match=rf"^{verb}\(\) called after close\(\): this env's {name} backend"):
+            call()
+    env.close()  # still harmless
 
 
 @pytest.mark.parametrize("name", BACKENDS)

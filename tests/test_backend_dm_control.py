@@ -26,6 +26,11 @@ EMPTY = Scene(goal=Pose2D(100.0, 0.0, 0.0))
 FORWARD = np.array([0.5, 0.0, 0.0, 0.5, 0.0, 0.0])
 
 
+# The tests share a module-scoped backend or env whose state one hands on to the next: under xdist
+# they run on one worker, in file order (--dist loadgroup).
+pytestmark = pytest.mark.xdist_group("test_backend_dm_control")
+
+
 @pytest.fixture(scope="module")
 def backend():
     b = make_backend("dm_control")
@@ -112,6 +117,7 @@ def test_model_options_match_the_mujoco_backend(backend):
     from footsim.backends.mujoco_family.mujoco_sim import MujocoBackend
     from footsim.config import load_preset
 
+    backend.reset(EMPTY, np.random.default_rng(0))  # the obstacle pool parked, as in a fresh model
     # FootstepNav-v0's preset: every model option set (rolling and torsional friction included).
     cfg = load_preset("backend", "dm_control_v0")
     options = {

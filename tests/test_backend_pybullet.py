@@ -26,6 +26,11 @@ EMPTY = Scene(goal=Pose2D(100.0, 0.0, 0.0))
 FORWARD = np.array([0.5, 0.0, 0.0, 0.5, 0.0, 0.0])
 
 
+# The tests share a module-scoped backend or env whose state one hands on to the next: under xdist
+# they run on one worker, in file order (--dist loadgroup).
+pytestmark = pytest.mark.xdist_group("test_backend_pybullet")
+
+
 @pytest.fixture(scope="module")
 def backend():
     b = make_backend("pybullet")

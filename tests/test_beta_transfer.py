@@ -72,25 +72,11 @@ def _train(tmp_path, name, *overrides):
     return run_dir, proc
 
 
-@pytest.fixture(scope="module")
-def parents(tmp_path_factory):
-    """Tiny trained runs the transfer tests start from, trained once for the module (lazily)."""
-    root, runs = tmp_path_factory.mktemp("parents"), {}
-
-    def get(name: str, *overrides: str):
-        if name not in runs:
-            run_dir, proc = _train(root, name, *overrides)
-            assert proc.returncode == 0, proc.stderr[-2000:]
-            runs[name] = run_dir
-        return runs[name]
-
-    return get
-
-
 @pytest.mark.slow
+@pytest.mark.xdist_group("tiny_runs")
 @pytest.mark.parametrize("agent", ["ppo", "ppo_beta"])
-def test_init_from_copies_weights_and_records_the_parent(tmp_path, agent, parents):
-    parent = parents(agent, f"agent={agent}")
+def test_init_from_copies_weights_and_records_the_parent(tmp_path, agent, tiny_runs):
+    parent = tiny_runs(agent, f"agent={agent}")
     # weights copied exactly into a fresh model
     from footsim.rl.transfer import init_from_run
 
@@ -114,9 +100,10 @@ def test_init_from_copies_weights_and_records_the_parent(tmp_path, agent, parent
 
 
 @pytest.mark.slow
-def test_init_from_with_mismatched_spaces_or_distribution_fails_clearly(tmp_path, parents):
-    parent = parents("ppo", "agent=ppo")
-    obstacle_parent = parents("ppo_obstacles", "task=nav_obstacles")
+@pytest.mark.xdist_group("tiny_runs")
+def test_init_from_with_mismatched_spaces_or_distribution_fails_clearly(tmp_path, tiny_runs):
+    parent = tiny_runs("ppo", "agent=ppo")
+    obstacle_parent = tiny_runs("ppo_obstacles", "task=nav_obstacles")
     _, proc = _train(tmp_path, "child", "task=nav", f"init_from={obstacle_parent}")
     assert proc.returncode != 0 and "observation spaces differ" in proc.stderr
     _, proc = _train(tmp_path, "child2", "agent=ppo_beta", f"init_from={parent}")

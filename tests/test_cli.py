@@ -1,5 +1,6 @@
 """End-to-end runs through the installed command lines (tiny budgets)."""
 
+import csv
 import json
 import subprocess
 import sys
@@ -99,6 +100,58 @@ def test_scenes_train_eval_resume(tmp_path):
     assert "ignoring agent.learning_rate=0.5" in out  # the saved config decides, and it says so
     info = json.loads((run_dir / "train_info.json").read_text())
     assert info["num_timesteps"] >= 512
+
+
+@pytest.mark.xdist_group("tiny_runs")
+def test_eval_refuses_a_task_the_policy_cannot_read_and_honours_one_it_can(tiny_runs, tmp_path):
+    nav_run = tiny_runs("ppo", "agent=ppo")  # obstacle-free: a 17-D observation
+    refused = tmp_path / "refused"
+    proc = run(
+        "footsim-eval", f"run={nav_run}", "task=nav_obstacles", "n_scenes=2", f"hydra.run.dir={refused}", check=False
+    )
+    assert proc.returncode != 0
+    message = proc.stdout + proc.stderr
+    assert f"task=nav_obstacles cannot be evaluated with the policy of {nav_run}" in message
+    assert "goal_and_actions 17 = 17 inputs (its task nav)" in message and "rays 36 = 53 inputs" in message
+    assert not (refused / "episodes.csv").exists()
+
+    # the same observation: the task is taken as given (the run was trained with max_steps 100)
+    honoured = tmp_path / "honoured"
+    run("footsim-eval", f"run={nav_run}", "task=nav", "task.max_steps=2", "n_scenes=3", "plot=false",
+        f"hydra.run.dir={honoured}")  # fmt: skip
+    steps = [int(row["steps"]) for row in csv.DictReader((honoured / "episodes.csv").open())]
+    assert len(steps) == 3 and max(steps) == 2
+
+
+@pytest.mark.xdist_group("tiny_runs")
+def test_eval_says_what_it_uses_instead_of_what_it_does_not_take_as_given(tiny_runs, tmp_path, capsys):
+    from omegaconf import OmegaConf
+
+    from footsim.config import conf_dir
+    from footsim.rl.evaluate import eval_run_config
+
+    nav_run = tiny_runs("ppo", "agent=ppo")
+
+    run_cfg = eval_run_config(nav_run, OmegaConf.create({"backend": {"name": "mujoco"}}))
+    out = capsys.readouterr().out
+    assert out.startswith("backend=mujoco: walking with the mujoco backend's walk preset (conf/walk/mujoco.yaml); ")
+    assert "ignoring the run's walk (walk." in out
+    assert (
+        run_cfg.backend.name == "mujoco" and run_cfg.walk.freq == OmegaConf.load(conf_dir() / "walk/mujoco.yaml").freq
+    )
+    # a run with its own gait, evaluated on its own backend with another option: it keeps its walk
+    tuned = OmegaConf.load(nav_run / "config.yaml")
+    tuned.walk.freq = 1.5
+    (tmp_path / "tuned").mkdir()
+    OmegaConf.save(tuned, tmp_path / "tuned" / "config.yaml")
+    backend = {"name": "pymunk", "collision_distance": 0.25}
+    run_cfg = eval_run_config(tmp_path / "tuned", OmegaConf.create({"backend": backend}))
+    assert capsys.readouterr().out == ""  # nothing replaced, nothing to say
+    assert run_cfg.walk.freq == 1.5 and run_cfg.backend.collision_distance == 0.25
+
+    out = run("footsim-eval", f"run={nav_run}", "controller=velocity", "n_scenes=1", "plot=false",
+              f"hydra.run.dir={tmp_path}").stdout  # fmt: skip
+    assert f"controller=velocity: evaluating the baseline; ignoring run={nav_run}" in out
 
 
 def test_baseline_evaluation_applies_the_randomization_preset(tmp_path):

@@ -106,6 +106,39 @@ def test_walking_past_an_obstacle_is_not_a_collision():
         assert not term
 
 
+def test_a_given_scene_blocking_the_start_or_the_goal_is_refused_naming_it(tmp_path):
+    """The sampler keeps obstacles off a circle of task.scenes.robot_radius (0.2 m) around the start
+    and the goal, and the ball off the start; a scene given from outside must keep the same rule."""
+    from footsim.planners.controllers import make_controller
+    from footsim.rl.evaluate import evaluate
+    from footsim.tasks.scenes import load_scenes, save_scenes
+
+    goal = Pose2D(2.0, 0.0, 0.0)
+    fine = Scene(goal, obstacles=(Obstacle(0.35, 0.0, 0.15),))  # touching the start footprint: allowed
+    on_start = Scene(goal, obstacles=(Obstacle(1.0, 1.0, 0.1), Obstacle(0.1, 0.0, 0.2)))
+    on_goal = Scene(goal, obstacles=(Obstacle(2.1, 0.2, 0.15),))
+    ball_on_start = Scene(goal, ball=Obstacle(0.2, 0.0, 0.075))
+    env = FootstepEnv(obstacles=True)
+    env.reset(seed=0, options={"scene": fine})
+    with pytest.raises(ValueError, match=r"obstacle 1 \(x=0.1, y=0, r=0.2\) overlaps the robot's start footprint"):
+        env.reset(seed=0, options={"scene": on_start})
+    with pytest.raises(
+        ValueError, match=r"obstacle 0 \(x=2.1, y=0.2, r=0.15\) overlaps the robot's footprint at the goal"
+    ):
+        env.reset(seed=0, options={"scene": on_goal})
+    with pytest.raises(ValueError, match=r"the ball \(x=0.2, y=0, r=0.075\) overlaps the robot's start footprint"):
+        env.reset(seed=0, options={"scene": ball_on_start})
+    with pytest.raises(ValueError, match=r"^scenes: scene 2: obstacle 0 .* at the goal"):
+        FootstepEnv(obstacles=True, scenes=[fine, fine, on_goal])
+    # a scene file as footsim-eval reads it: refused before any episode runs, naming the scene's index
+    path = tmp_path / "scenes.json"
+    save_scenes(path, [fine, on_start, fine])
+    controller = make_controller(env, {"name": "velocity"})
+    with pytest.raises(ValueError, match=r"^scene 1: obstacle 1 .* start footprint"):
+        evaluate(env, controller, load_scenes(path), progress=False)
+    env.close()
+
+
 _WITHOUT_PACKAGES = """
 import importlib.abc, sys
 BLOCKED = set(sys.argv[2].split(","))

@@ -32,6 +32,10 @@ def _available(name):
 
 OPEN_LOOP_WALK = {"trunk_pid_pitch_p": 0.0, "trunk_pid_pitch_d": 0.0, "phase_reset_foot_pressure_active": False}
 
+# The tests share a module-scoped backend or env whose state one hands on to the next: under xdist
+# they run on one worker, in file order (--dist loadgroup).
+pytestmark = pytest.mark.xdist_group("test_randomization_3d")
+
 
 @pytest.fixture(scope="module", params=BACKENDS)
 def env(request):

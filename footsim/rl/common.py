@@ -10,8 +10,7 @@ from pathlib import Path
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
-from footsim.config import upgrade_run_config
-from footsim.rl.beta import BetaActorCriticPolicy
+from footsim.config import build_noise, build_task, plain_config, upgrade_run_config
 from footsim.utils import atomic_write_text
 
 MODEL_FILE = "model.zip"
@@ -93,11 +92,16 @@ def validate_train_config(cfg: DictConfig) -> None:
         raise ValueError(f"agent.distribution must be gaussian or beta, got {cfg.agent.distribution!r}")
     if cfg.train.vec_env not in ("auto", "dummy", "subproc"):
         raise ValueError(f"train.vec_env must be auto, dummy or subproc, got {cfg.train.vec_env!r}")
+    # the task's and the noise's own checks, here before the env workers (and torch) start
+    build_task(plain_config(cfg.task))
+    build_noise(plain_config(cfg.noise))
 
 
 def policy_class(agent: DictConfig):
     """SB3 policy for the configured action distribution."""
     if agent.get("distribution", "gaussian") == "beta":
+        from footsim.rl.beta import BetaActorCriticPolicy  # torch: imported by what trains or loads a policy
+
         return BetaActorCriticPolicy
     return "MlpPolicy"
 

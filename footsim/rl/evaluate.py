@@ -1,4 +1,4 @@
-"""Evaluation on a fixed scene set: ``footsim-eval run=RUN_DIR [scenes=FILE] [backend=B] [noise=N]``.
+"""Evaluation on a fixed scene set: ``footsim-eval run=RUN_DIR [scenes=FILE] [backend=B] [task=T] [noise=N]``.
 
 Baselines run the same way without a run: ``footsim-eval controller=velocity|footstep
 [backend=B] [task=T] [noise=N] [scenes=FILE]`` (``footsim.planners``).
@@ -17,14 +17,15 @@ from pathlib import Path
 from typing import Protocol
 
 import numpy as np
+from omegaconf import DictConfig, OmegaConf
 
 from footsim import config as fconf
 from footsim.env import FootstepEnv, make_env
 from footsim.planners.controllers import make_controller
-from footsim.rl.common import LoadedPolicy, write_json
+from footsim.rl.common import LoadedPolicy, load_run_config, write_json
 from footsim.scene import Scene
 from footsim.tasks.scenes import load_scenes, sample_scenes
-from footsim.utils import atomic_save, atomic_write_text
+from footsim.utils import atomic_save, atomic_write_text, note_not_honoured
 
 OUTCOME_COLUMNS = ("success", "timeout", "fall", "collision", "sim_error")
 
@@ -108,7 +109,9 @@ def evaluate(
     video_dir: Path | None = None,
     video_episodes: int = 0,
 ) -> list[dict]:
-    """Run every scene once; with ``video_dir``, the first ``video_episodes`` are saved as GIFs."""
+    """Run every scene once; with ``video_dir``, the first ``video_episodes`` are saved as GIFs.
+    A scene the robot cannot start or finish in is refused before any episode, naming its index."""
+    env.unwrapped.sampler.check_scenes(scenes)
     records = []
     iterator = range(len(scenes))
     if progress:
@@ -244,6 +247,61 @@ def _conditions(backend: str, task: str, noise: str, randomization: str | None) 
     """A result label's conditions; randomization only when there is any."""
     text = f"{backend}, {task}, noise={noise}"
     return text if randomization in (None, "", "none") else f"{text}, randomization={randomization}"
+
+
+def eval_run_config(run_dir: Path, cfg_eval) -> DictConfig:
+    """The config ``footsim-eval run=RUN_DIR`` evaluates: the run's saved one, with the groups set
+    on the command line (``backend``, ``task``, ``noise``, ``randomization``; a mapping merges
+    over its preset) in place of the run's.
+
+    On another backend the policy walks with that backend's walk preset (:func:`walk_on_backend`),
+    and a note says so when that differs from the run's walk.  A task whose observation differs
+    from the run's (rays, IMU, path hint) is refused: the policy cannot read it.
+    """
+    run_cfg = load_run_config(run_dir)
+    OmegaConf.set_struct(run_cfg, False)
+    if cfg_eval.get("task") is not None:
+        task = fconf.load_preset("task", cfg_eval.task)
+        trained = fconf.build_task(fconf.to_plain(run_cfg.task))[1].observation_layout
+        asked = fconf.build_task(task)[1].observation_layout
+        if asked != trained:
+            raise SystemExit(
+                f"footsim-eval: task={task['name']} cannot be evaluated with the policy of {run_dir}: it reads "
+                f"{_layout_text(trained)} (its task {run_cfg.task.name}), task {task['name']} gives "
+                f"{_layout_text(asked)}. Leave task= out to evaluate on the run's task."
+            )
+        run_cfg.task = task
+    if cfg_eval.get("backend") is not None:
+        name = cfg_eval.backend.name
+        walk, differing = walk_on_backend(run_cfg, name)
+        if differing:
+            shown = ", ".join(f"walk.{k}" for k in differing[:4]) + (", …" if len(differing) > 4 else "")
+            note_not_honoured(
+                f"backend={name}",
+                f"walking with the {name} backend's walk preset (conf/walk/{name}.yaml)",
+                f"the run's walk ({shown} differ)",
+            )
+        run_cfg.walk = walk
+    for group in ("backend", "noise", "randomization"):
+        if cfg_eval.get(group) is not None:
+            run_cfg[group] = fconf.load_preset(group, cfg_eval[group])
+    return run_cfg
+
+
+def walk_on_backend(run_cfg, backend: str) -> tuple[dict, list[str]]:
+    """The walk a run's policy walks with on ``backend``, and the walk keys in which it differs from
+    the run's: on its training backend the run's own walk, on another that backend's walk preset
+    (``conf/walk/<backend>.yaml``; a gait is tuned per simulator)."""
+    run_walk = fconf.to_plain(run_cfg.walk)
+    if backend == run_cfg.backend.name:
+        return run_walk, []
+    walk = fconf.load_preset("walk", backend=backend)
+    return walk, sorted(k for k in set(walk) | set(run_walk) if walk.get(k) != run_walk.get(k))
+
+
+def _layout_text(layout: tuple[tuple[str, int], ...]) -> str:
+    """``goal_and_actions 17 + rays 36 = 53 inputs``"""
+    return " + ".join(f"{block} {size}" for block, size in layout) + f" = {sum(s for _, s in layout)} inputs"
 
 
 def evaluate_run(run_cfg, run_dir: Path, out_dir: Path, cfg_eval, label: str | None = None) -> dict:

@@ -172,17 +172,17 @@ def save_checkpoint(model, run_dir: Path) -> None:
 
 def train(cfg: DictConfig, run_dir: Path) -> dict:
     """Train (or resume) and evaluate; returns the evaluation summary (the sweep objective)."""
-    import torch
-    from stable_baselines3 import PPO
-    from stable_baselines3.common.vec_env import VecNormalize
-
     resume_dir = Path(cfg.resume).expanduser().resolve() if cfg.get("resume") else None
     if resume_dir is not None:
         cfg = load_run_config(resume_dir)
         run_dir = resume_dir
         if not (run_dir / CHECKPOINT_DIR / LATEST).is_file():
             raise FileNotFoundError(f"resume: no checkpoint in {run_dir / CHECKPOINT_DIR}")
-    validate_train_config(cfg)
+    validate_train_config(cfg)  # a bad value fails here, before torch is imported
+    import torch
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecNormalize
+
     run_dir.mkdir(parents=True, exist_ok=True)
     save_config(run_dir, cfg)
     torch.set_num_threads(1)  # small MLPs: threads cost more than they gain next to the env workers

@@ -31,7 +31,7 @@ from omegaconf import OmegaConf
 
 from footsim import config as fconf
 from footsim.rl.common import CONFIG_FILE, MODEL_FILE, SUMMARY_METRICS, load_run_config
-from footsim.rl.evaluate import evaluate_run
+from footsim.rl.evaluate import evaluate_run, walk_on_backend
 from footsim.tasks.scenes import sample_scenes, save_scenes
 from footsim.utils import atomic_save, atomic_write_text
 
@@ -105,7 +105,7 @@ def eval_config(run_cfg, eval_backend: str, randomization: str):
     OmegaConf.set_struct(cfg, False)
     if eval_backend != run_cfg.backend.name:
         cfg.backend = fconf.load_preset("backend", eval_backend)
-        cfg.walk = fconf.load_preset("walk", backend=eval_backend)
+        cfg.walk = walk_on_backend(run_cfg, eval_backend)[0]
     cfg.randomization = fconf.load_preset("randomization", randomization)
     return cfg
 

@@ -81,7 +81,7 @@ class SceneSampler:
             if not self.obstacles:
                 return Scene(goal)
             ball = Obstacle(*goal.transform_point(self.ball_offset, 0.0), self.ball_radius)
-            if math.hypot(ball.x, ball.y) < ball.r + self.robot_radius:
+            if not clear_of_footprint(ball, 0.0, 0.0, self.robot_radius):
                 continue  # the robot would start touching the ball
             obstacles = [self._obstacle_near(0.0, 0.0, goal, rng) for _ in range(int(self.n_obstacles_robot))]
             obstacles += [self._obstacle_near(goal.x, goal.y, goal, rng) for _ in range(int(self.n_obstacles_goal))]
@@ -92,11 +92,46 @@ class SceneSampler:
         while True:
             dx, dy = sigma * normal(), sigma * normal()  # rng.normal(0, sigma, size=2), see sample()
             r = uniform(rng, self.obstacle_radius_min, self.obstacle_radius_max)
-            x, y = cx + dx, cy + dy
-            clear_of_start = math.hypot(x, y) >= r + self.robot_radius
-            clear_of_goal = math.hypot(x - goal.x, y - goal.y) >= r + self.robot_radius
-            if clear_of_start and clear_of_goal:
-                return Obstacle(x, y, r)
+            obstacle = Obstacle(cx + dx, cy + dy, r)
+            clear_of_start = clear_of_footprint(obstacle, 0.0, 0.0, self.robot_radius)
+            if clear_of_start and clear_of_footprint(obstacle, goal.x, goal.y, self.robot_radius):
+                return obstacle
+
+    def footprint_overlap(self, scene: Scene) -> str | None:
+        """What of ``scene`` breaks the rule :meth:`sample` keeps (an obstacle on the robot's start
+        footprint or on the robot standing at the goal, the ball on the start footprint; the ball
+        lies at the goal's feet by design), or None."""
+        radius = f"(task.scenes.robot_radius={self.robot_radius:g} m)"
+        goal = scene.goal
+        footprints = (
+            ("the robot's start footprint at the origin", 0.0, 0.0),
+            (f"the robot's footprint at the goal ({goal.x:g}, {goal.y:g})", goal.x, goal.y),
+        )
+        for k, obstacle in enumerate(scene.obstacles):
+            for footprint, cx, cy in footprints:
+                if not clear_of_footprint(obstacle, cx, cy, self.robot_radius):
+                    return f"obstacle {k} {_circle_text(obstacle)} overlaps {footprint} {radius}"
+        ball = scene.ball
+        if ball is not None and not clear_of_footprint(ball, 0.0, 0.0, self.robot_radius):
+            return f"the ball {_circle_text(ball)} overlaps {footprints[0][0]} {radius}"
+        return None
+
+    def check_scenes(self, scenes: list[Scene], where: str = "") -> None:
+        """Refuse a scene the robot cannot start or finish in (:meth:`footprint_overlap`), naming
+        the index of the first such scene (after ``where``, e.g. the argument's name)."""
+        for i, scene in enumerate(scenes):
+            problem = self.footprint_overlap(scene)
+            if problem is not None:
+                raise ValueError(f"{where}scene {i}: {problem}")
+
+
+def clear_of_footprint(circle: Obstacle, cx: float, cy: float, robot_radius: float) -> bool:
+    """Whether ``circle`` keeps clear of the robot's footprint, a circle of ``robot_radius`` at (cx, cy)."""
+    return math.hypot(circle.x - cx, circle.y - cy) >= circle.r + robot_radius
+
+
+def _circle_text(circle: Obstacle) -> str:
+    return f"(x={circle.x:g}, y={circle.y:g}, r={circle.r:g})"
 
 
 def uniform(rng: np.random.Generator, low: float, high: float) -> float:

@@ -7,29 +7,23 @@ from pathlib import Path
 
 import hydra
 from hydra.core.hydra_config import HydraConfig
-from omegaconf import OmegaConf
 
-from footsim import config as fconf
 from footsim.config import conf_dir
-from footsim.rl.common import load_run_config
-from footsim.rl.evaluate import evaluate_baseline, evaluate_run
+from footsim.rl.evaluate import eval_run_config, evaluate_baseline, evaluate_run
 from footsim.schema import register_schemas
+from footsim.utils import note_not_honoured
 
 
 def _main(cfg) -> dict:
     controller = cfg.get("controller")
     if controller is not None and controller.get("name", "policy") != "policy":
+        if cfg.run is not None:
+            note_not_honoured(f"controller={controller.name}", "evaluating the baseline", f"run={cfg.run}")
         return evaluate_baseline(cfg, Path(HydraConfig.get().runtime.output_dir))
     if cfg.run is None:
         raise SystemExit("footsim-eval: run=RUN_DIR is required (or controller=velocity|footstep for a baseline)")
     run_dir = Path(cfg.run).expanduser().resolve()
-    run_cfg = load_run_config(run_dir)
-    OmegaConf.set_struct(run_cfg, False)
-    for group in ("backend", "noise", "randomization"):  # groups chosen on the command line replace the run's
-        if cfg.get(group) is not None:
-            run_cfg[group] = fconf.load_preset(group, cfg[group])
-    if cfg.get("backend") is not None:  # a policy moved to another backend walks with that backend's gait
-        run_cfg.walk = fconf.load_preset("walk", backend=run_cfg.backend.name)
+    run_cfg = eval_run_config(run_dir, cfg)
     out_dir = Path(HydraConfig.get().runtime.output_dir)
     return evaluate_run(run_cfg, run_dir, out_dir, cfg)
 

@@ -12,14 +12,15 @@ from omegaconf import DictConfig
 from footsim.config import conf_dir
 from footsim.rl.common import CONFIG_FILE
 from footsim.rl.train import train
+from footsim.utils import note_not_honoured
 
 
 def _main(cfg: DictConfig):
     hydra_cfg = HydraConfig.get()
     if cfg.get("resume"):
         ignored = [o for o in hydra_cfg.overrides.task if o.split("=", 1)[0].lstrip("+~") != "resume"]
-        if ignored:  # the run's saved config decides; say so rather than drop them silently
-            print(f"resume: continuing with the run's saved config ({CONFIG_FILE}); ignoring {' '.join(ignored)}")
+        if ignored:  # the run's saved config decides
+            note_not_honoured("resume", f"continuing with the run's saved config ({CONFIG_FILE})", " ".join(ignored))
     summary = train(cfg, Path(hydra_cfg.runtime.output_dir))
     return summary.get("success") if summary else None
 
