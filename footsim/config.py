@@ -71,10 +71,14 @@ def _hydra(controllers: bool = False) -> Iterator[None]:
     and restored afterwards."""
     from hydra import initialize_config_dir
     from hydra.core.global_hydra import GlobalHydra
+    from hydra.core.utils import JobRuntime
 
     schema.register_schemas(controllers)
     global_hydra = GlobalHydra.instance()
     running = global_hydra.hydra if global_hydra.is_initialized() else None
+    # initialize_config_dir renames the running app's job (JobRuntime "name"); a multirun that
+    # composes its next job in this process would name it (and its log file) "footsim"
+    job_name = JobRuntime.instance().conf.get("name")
     if running is not None:
         global_hydra.clear()
     try:
@@ -86,6 +90,7 @@ def _hydra(controllers: bool = False) -> Iterator[None]:
             if global_hydra.is_initialized():
                 global_hydra.clear()
             global_hydra.initialize(running)
+        JobRuntime.instance().set("name", job_name)
 
 
 @functools.lru_cache(maxsize=128)

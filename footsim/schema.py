@@ -249,6 +249,8 @@ class EvalAppConfig:
     plot: bool = MISSING
     video: bool = MISSING
     video_episodes: int = MISSING
+    shard: Optional[str] = MISSING
+    merge: Optional[str] = MISSING
 
 
 @dataclass

@@ -10,6 +10,8 @@
 # VELOCITY picks the velocity baseline's preset (e.g. VELOCITY=velocity_mujoco, tuned for the 3D walk);
 # FOOTSTEP likewise picks the footstep planner's preset (e.g. FOOTSTEP=footstep_mujoco).
 # NOISES limits the noise settings (e.g. NOISES=none).
+# SHARDS=K runs every evaluation as K scene shards in parallel on this machine (footsim-eval shard=,
+# joblib launcher), merged into the same summary.json / episodes.csv (docs/SWEEPS.md).
 set -euo pipefail
 OUT=${OUT:-outputs/baselines}
 BACKEND=${BACKEND:-pymunk}
@@ -18,7 +20,18 @@ EXTRA=${EXTRA:-}
 VELOCITY=${VELOCITY:-velocity}
 FOOTSTEP=${FOOTSTEP:-footstep}
 NOISES=${NOISES:-none localization}
+SHARDS=${SHARDS:-1}
 mkdir -p "$OUT"
+evaluate() {  # evaluate DIR FOOTSIM-EVAL-ARGS...: results in DIR
+  local dir=$1
+  shift
+  if [ "$SHARDS" -gt 1 ]; then
+    footsim-eval -m "$@" shard="$(seq -s, -f "%g/$SHARDS" 0 $((SHARDS - 1)))" \
+      hydra/launcher=joblib hydra.launcher.n_jobs="$SHARDS" hydra.sweep.dir="$dir"
+  else
+    footsim-eval "$@" hydra.run.dir="$dir"
+  fi
+}
 [ -f "$OUT/scenes_free.json" ] || footsim-scenes out="$OUT/scenes_free.json" n="$N" seed=20220101 obstacles=false
 [ -f "$OUT/scenes_obstacles.json" ] || footsim-scenes out="$OUT/scenes_obstacles.json" n="$N" seed=20220102 obstacles=true
 for controller in velocity footstep; do
@@ -29,8 +42,7 @@ for controller in velocity footstep; do
     for noise in $NOISES; do
       dir="$OUT/$BACKEND/$controller/$set/$noise"
       [ -f "$dir/summary.json" ] && continue
-      footsim-eval controller=$preset backend=$BACKEND noise=$noise scenes="$OUT/scenes_$set.json" \
-        hydra.run.dir="$dir" $EXTRA
+      evaluate "$dir" controller=$preset backend=$BACKEND noise=$noise scenes="$OUT/scenes_$set.json" $EXTRA
     done
   done
 done
@@ -41,7 +53,7 @@ for set in free obstacles; do
   for noise in $NOISES; do
     dir="$OUT/$BACKEND/policy/$set/$noise"
     [ -f "$dir/summary.json" ] && continue
-    footsim-eval run="$run" backend=$BACKEND noise=$noise scenes="$OUT/scenes_$set.json" hydra.run.dir="$dir"
+    evaluate "$dir" run="$run" backend=$BACKEND noise=$noise scenes="$OUT/scenes_$set.json"
   done
 done
 python -m footsim.planners.report "$OUT" backend=$BACKEND paths=${PATHS:-4} ${POLICY_OBSTACLES:+policy_run=$POLICY_OBSTACLES}

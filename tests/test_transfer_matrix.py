@@ -1,6 +1,7 @@
 """footsim-transfer-matrix: a tiny pymunk × mujoco matrix (train + evaluate), then the runs= reuse path."""
 
 import csv
+from pathlib import Path
 
 import pytest
 
@@ -70,6 +71,20 @@ def test_transfer_matrix_trains_evaluates_and_reuses_runs(tmp_path):
             assert r["timeout"] == same[r["train_backend"]]["timeout"]
     assert (again / "heatmap_success.png").is_file()
 
+    # the same matrix in 2 scene shards (two processes sharing out=): the second writes the matrix
+    sharded = tmp_path / "sharded"
+    args = [f"out={sharded}", f"runs={out / 'train'}", f"scenes={out / 'scenes.json'}", "eval_backends=pymunk"]
+    transfer_matrix_tool.main([*args, "randomization=none,default", "shard=1/2"])
+    assert not (sharded / "matrix.csv").exists()  # every cell waits for shard 0/2
+    transfer_matrix_tool.main([*args, "randomization=none,default", "shard=0/2"])
+    drop = ("eval_dir",)
+    assert [{k: v for k, v in r.items() if k not in drop} for r in _rows(sharded / "matrix.csv")] == [
+        {k: v for k, v in r.items() if k not in drop} for r in rows2
+    ]
+    for r in rows2:
+        cell = sharded / Path(r["eval_dir"]).relative_to(again)
+        assert (cell / "episodes.csv").read_bytes() == (Path(r["eval_dir"]) / "episodes.csv").read_bytes()
+
 
 def test_arguments(tmp_path):
     cfg, overrides = transfer_matrix_tool.parse_args(
@@ -83,6 +98,10 @@ def test_arguments(tmp_path):
     assert "eval.after_train=false" in cmd and cmd[-1] == "hydra.sweep.dir=/x"
     with pytest.raises(SystemExit, match="runs= reuses"):
         transfer_matrix_tool.parse_args(["runs=/tmp", "train.total_timesteps=5"])
+    with pytest.raises(SystemExit, match="give runs=DIR and out=DIR"):
+        transfer_matrix_tool.parse_args(["shard=0/2"])
+    with pytest.raises(SystemExit, match="shard must be K/N"):
+        transfer_matrix_tool.parse_args(["runs=/tmp", "out=/tmp/o", "shard=2/2"])
     with pytest.raises(SystemExit, match="no trained run"):
         transfer_matrix.transfer_matrix(
             {**transfer_matrix_tool.parse_args([])[0], "runs": str(tmp_path), "out": str(tmp_path / "o")}, []

@@ -5,16 +5,25 @@ Baselines run the same way without a run: ``footsim-eval controller=velocity|foo
 
 Writes ``summary.json``, ``episodes.csv`` and ``goals.png`` (thesis Fig. 6.3 style) into its own
 Hydra output directory and prints the thesis-style table.
+
+Shards: ``shard=K/N`` evaluates only the K-th of N contiguous slices of the scene set (episode
+``i`` keeps scene ``i`` and seed ``seed + i``) and writes ``shards/K-of-N.json`` (its episodes,
+atomically) into the output directory; when all N shard files are there, they are merged into
+``summary.json`` / ``episodes.csv`` / ``goals.png``, the same files, episode for episode, as one
+process evaluating every scene (:func:`merge_shards`, also ``footsim-eval merge=DIR``).
 """
 
 from __future__ import annotations
 
 import csv
+import hashlib
 import io
+import json
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
@@ -108,12 +117,14 @@ def evaluate(
     progress: bool = True,
     video_dir: Path | None = None,
     video_episodes: int = 0,
+    indices: Sequence[int] | None = None,
 ) -> list[dict]:
-    """Run every scene once; with ``video_dir``, the first ``video_episodes`` are saved as GIFs.
-    A scene the robot cannot start or finish in is refused before any episode, naming its index."""
+    """Run every scene once (or the scenes at ``indices``); episode ``i`` runs scene ``i`` with seed
+    ``seed + i``.  With ``video_dir``, episodes ``i < video_episodes`` are saved as GIFs.  A scene the
+    robot cannot start or finish in is refused before any episode, naming its index."""
     env.unwrapped.sampler.check_scenes(scenes)
     records = []
-    iterator = range(len(scenes))
+    iterator: Sequence[int] = range(len(scenes)) if indices is None else indices
     if progress:
         from tqdm import tqdm
 
@@ -243,6 +254,151 @@ def eval_scenes(cfg_eval, sampler) -> list[Scene]:
     return sample_scenes(sampler, int(cfg_eval.n_scenes), int(cfg_eval.scenes_seed))
 
 
+# -- shards -------------------------------------------------------------------------------------
+SHARDS_DIR = "shards"
+
+
+@dataclass(frozen=True)
+class Shard:
+    """The ``index``-th of ``count`` contiguous slices of a scene set (``shard=K/N``)."""
+
+    index: int
+    count: int
+
+    @classmethod
+    def parse(cls, text: Any) -> Shard:
+        try:
+            index, count = (int(part) for part in str(text).split("/"))
+        except ValueError:
+            raise ValueError(f"shard must be K/N (shard K of N, 0 <= K < N), got {text!r}") from None
+        if not 0 <= index < count:
+            raise ValueError(f"shard must be K/N with 0 <= K < N, got {text!r}")
+        return cls(index, count)
+
+    @property
+    def name(self) -> str:
+        return f"{self.index}/{self.count}"
+
+    def path(self, out_dir: Path) -> Path:
+        return out_dir / SHARDS_DIR / f"{self.index}-of-{self.count}.json"
+
+    def scenes(self, n_scenes: int) -> range:
+        """This shard's scene indices: shard sizes differ by at most one."""
+        if self.count > n_scenes:
+            raise ValueError(f"shard={self.name}: {self.count} shards for {n_scenes} scenes; use at most {n_scenes}")
+        return range(self.index * n_scenes // self.count, (self.index + 1) * n_scenes // self.count)
+
+
+def shard_of(cfg_eval) -> Shard | None:
+    """The eval config's ``shard`` (None: every scene in this process)."""
+    text = cfg_eval.get("shard")
+    return None if text in (None, "") else Shard.parse(text)
+
+
+def evaluation_id(scenes: list[Scene], **setting: Any) -> str:
+    """A digest of the scene set and of everything else an episode depends on: shards merge only
+    with shards of the same evaluation."""
+    payload = json.dumps(
+        {"scenes": [s.to_dict() for s in scenes], **setting}, sort_keys=True, default=str, allow_nan=True
+    )
+    return hashlib.sha256(payload.encode()).hexdigest()[:16]
+
+
+def _results(
+    out_dir: Path, records: list[dict], label: str, plot: bool, baseline: bool, config_used: dict | None
+) -> dict:
+    """summary.json, episodes.csv (and goals.png, config_used.json) of a whole evaluation; prints the table."""
+    summary = summarize(records)
+    if baseline:
+        statuses = [r["planner_status"] for r in records if "planner_status" in r]
+        summary["planner_status"] = {k: statuses.count(k) for k in sorted(set(statuses))}
+    summary["label"] = label
+    write_results(out_dir, records, summary, plot=plot, title=label)
+    if config_used is not None:
+        write_json(out_dir / "config_used.json", config_used)
+    print(format_table({label: summary}))
+    print(f"results in {out_dir}")
+    return summary
+
+
+def _finish(
+    out_dir: Path,
+    records: list[dict],
+    label: str,
+    cfg_eval,
+    shard: Shard | None,
+    evaluation: str,
+    n_scenes: int,
+    baseline: bool = False,
+    config_used: dict | None = None,
+) -> dict:
+    plot = bool(cfg_eval.get("plot", True))
+    if shard is None:
+        return _results(out_dir, records, label, plot, baseline, config_used)
+    part = {
+        "shard": shard.name,
+        "index": shard.index,
+        "count": shard.count,
+        "n_scenes": n_scenes,
+        "evaluation": evaluation,
+        "label": label,
+        "baseline": baseline,
+        "config_used": config_used,
+        "records": records,
+    }
+    # allow_nan: the records round-trip exactly (NaN included), so the merged CSV is the single run's
+    atomic_write_text(shard.path(out_dir), json.dumps(part, allow_nan=True, default=float) + "\n")
+    print(f"shard {shard.name} ({len(records)} episodes) written to {shard.path(out_dir)}")
+    merged = merge_shards(out_dir, plot=plot, require_all=False)
+    return merged if merged is not None else {**summarize(records), "label": label, "shard": shard.name}
+
+
+def merge_shards(out_dir: str | Path, plot: bool = True, require_all: bool = True) -> dict | None:
+    """Merge ``out_dir/shards/K-of-N.json`` into ``out_dir``'s summary.json / episodes.csv.
+
+    Missing shards are named (with their scenes): an error with ``require_all``, else a note and
+    None.  Shards of different evaluations (scene set, policy, conditions) or shard counts in one
+    directory are an error naming the files.  Shard files are kept.
+    """
+    out_dir = Path(out_dir)
+    files = sorted((out_dir / SHARDS_DIR).glob("*-of-*.json"))
+    if not files:
+        raise FileNotFoundError(f"merge: no shard files ({SHARDS_DIR}/K-of-N.json) in {out_dir}")
+    parts = []
+    for path in files:
+        try:
+            parts.append((path, json.loads(path.read_text())))
+        except (OSError, ValueError) as err:
+            raise ValueError(f"merge: unreadable shard file {path}: {err}") from None
+    kinds = {(p["evaluation"], p["count"], p["n_scenes"]) for _, p in parts}
+    if len(kinds) > 1:
+        listing = "; ".join(f"{path.name}: evaluation {p['evaluation']}, {p['count']} shards" for path, p in parts)
+        raise ValueError(
+            f"merge: {out_dir / SHARDS_DIR} holds shards of different evaluations ({listing}); "
+            "give each evaluation its own output directory"
+        )
+    by_index = {p["index"]: p for _, p in parts}
+    first = parts[0][1]
+    count, n_scenes = int(first["count"]), int(first["n_scenes"])
+    missing = [Shard(k, count) for k in range(count) if k not in by_index]
+    if missing:
+        names = ", ".join(
+            f"{m.name} (scenes {m.scenes(n_scenes).start}..{m.scenes(n_scenes).stop - 1})" for m in missing
+        )
+        message = (
+            f"{len(missing)} of {count} shards missing in {out_dir / SHARDS_DIR}: {names}; run each alone with "
+            f"the same footsim-eval command and shard=K/N hydra.run.dir={out_dir}"
+        )
+        if require_all:
+            raise FileNotFoundError(f"merge: {message}")
+        print(f"note: {message}; merged when all are there")
+        return None
+    records = [r for k in range(count) for r in by_index[k]["records"]]
+    if [r["scene"] for r in records] != list(range(n_scenes)):
+        raise ValueError(f"merge: the shards in {out_dir / SHARDS_DIR} do not cover scenes 0..{n_scenes - 1} once each")
+    return _results(out_dir, records, first["label"], plot, bool(first["baseline"]), first["config_used"])
+
+
 def _conditions(backend: str, task: str, noise: str, randomization: str | None) -> str:
     """A result label's conditions; randomization only when there is any."""
     text = f"{backend}, {task}, noise={noise}"
@@ -308,6 +464,7 @@ def evaluate_run(run_cfg, run_dir: Path, out_dir: Path, cfg_eval, label: str | N
     """Evaluate a run's trained policy with the (possibly overridden) run config."""
 
     video = bool(cfg_eval.get("video", False))
+    shard = shard_of(cfg_eval)
     env = make_env(run_cfg, render_mode="rgb_array" if video else None)
     try:
         scenes = eval_scenes(cfg_eval, env.sampler)
@@ -321,18 +478,25 @@ def evaluate_run(run_cfg, run_dir: Path, out_dir: Path, cfg_eval, label: str | N
             seed=int(cfg_eval.get("seed", 0)),
             video_dir=out_dir / "videos" if video else None,
             video_episodes=int(cfg_eval.get("video_episodes", 3)),
+            indices=None if shard is None else shard.scenes(len(scenes)),
         )
     finally:
         env.close()
-    summary = summarize(records)
     randomization = (run_cfg.get("randomization") or {}).get("name")
     conditions = _conditions(run_cfg.backend.name, run_cfg.task.name, run_cfg.noise.get("name", ""), randomization)
     name = label or f"policy ({conditions})"
-    summary["label"] = name
-    write_results(out_dir, records, summary, scenes, plot=bool(cfg_eval.get("plot", True)), title=name)
-    print(format_table({name: summary}))
-    print(f"results in {out_dir}")
-    return summary
+    evaluation = (
+        ""
+        if shard is None
+        else evaluation_id(
+            scenes,
+            run=str(run_dir),
+            config=fconf.to_plain(run_cfg),
+            seed=int(cfg_eval.get("seed", 0)),
+            deterministic=bool(cfg_eval.deterministic),
+        )
+    )
+    return _finish(out_dir, records, name, cfg_eval, shard, evaluation, len(scenes))
 
 
 def evaluate_baseline(cfg_eval, out_dir: Path, label: str | None = None) -> dict:
@@ -351,6 +515,7 @@ def evaluate_baseline(cfg_eval, out_dir: Path, label: str | None = None) -> dict
     noise = cfg_eval.get("noise") or "none"
     randomization = cfg_eval.get("randomization") or "none"
     video = bool(cfg_eval.get("video", False))
+    shard = shard_of(cfg_eval)
     env = FootstepEnv(
         backend=fconf.to_plain(backend),
         task=fconf.to_plain(task),
@@ -370,13 +535,11 @@ def evaluate_baseline(cfg_eval, out_dir: Path, label: str | None = None) -> dict
             seed=int(cfg_eval.get("seed", 0)),
             video_dir=out_dir / "videos" if video else None,
             video_episodes=int(cfg_eval.get("video_episodes", 3)),
+            indices=None if shard is None else shard.scenes(len(scenes)),
         )
         cfg_used = {"controller": controller_cfg, **env.config}
     finally:
         env.close()
-    summary = summarize(records)
-    statuses = [r["planner_status"] for r in records if "planner_status" in r]
-    summary["planner_status"] = {k: statuses.count(k) for k in sorted(set(statuses))}
     config = env.config
     conditions = _conditions(
         config["backend"]["name"],
@@ -385,10 +548,7 @@ def evaluate_baseline(cfg_eval, out_dir: Path, label: str | None = None) -> dict
         (config.get("randomization") or {}).get("name"),
     )
     name = label or f"{controller_cfg['name']} baseline ({conditions})"
-    summary["label"] = name
-    write_results(out_dir, records, summary, scenes, plot=bool(cfg_eval.get("plot", True)), title=name)
-
-    write_json(out_dir / "config_used.json", cfg_used)
-    print(format_table({name: summary}))
-    print(f"results in {out_dir}")
-    return summary
+    evaluation = "" if shard is None else evaluation_id(scenes, config=cfg_used, seed=int(cfg_eval.get("seed", 0)))
+    return _finish(
+        out_dir, records, name, cfg_eval, shard, evaluation, len(scenes), baseline=True, config_used=cfg_used
+    )

@@ -7,6 +7,9 @@
    ``n_scenes`` drawn with the task's sampler and written to ``OUT/scenes.json``), once per
    evaluation randomization preset (``randomization=none,default``).  A cell whose
    ``summary.json`` already exists is not evaluated again (re-running the command resumes).
+   With ``shard=K/N`` (and ``runs=``) this process evaluates scene shard K of every cell
+   (:class:`footsim.rl.evaluate.Shard`); N such processes, on any machines sharing OUT, fill
+   the cells, and the one that completes the last cell writes the outputs.
 3. Writes ``OUT/matrix.csv`` (one row per policy × eval backend × randomization), ``matrix.md``
    and the heatmaps ``heatmap_success.png`` and ``heatmap_success_time.png`` (mean over the
    policies trained on the same backend; one panel per randomization preset), all atomically.
@@ -31,7 +34,7 @@ from omegaconf import OmegaConf
 
 from footsim import config as fconf
 from footsim.rl.common import CONFIG_FILE, MODEL_FILE, SUMMARY_METRICS, load_run_config
-from footsim.rl.evaluate import evaluate_run, walk_on_backend
+from footsim.rl.evaluate import Shard, evaluate_run, merge_shards, walk_on_backend
 from footsim.tasks.scenes import sample_scenes, save_scenes
 from footsim.utils import atomic_save, atomic_write_text
 
@@ -112,10 +115,14 @@ def eval_config(run_cfg, eval_backend: str, randomization: str):
 
 def evaluate_cell(
     run_dir: Path, run_cfg, eval_backend: str, randomization: str, scenes: Path, cell_dir: Path, cfg: dict
-) -> dict:
+) -> dict | None:
+    """The cell's summary; None while a sharded cell waits for other shards."""
     summary_path = cell_dir / "summary.json"
     if summary_path.is_file():
         return json.loads(summary_path.read_text())
+    shard = Shard.parse(cfg["shard"]) if cfg.get("shard") else None
+    if shard is not None and shard.path(cell_dir).is_file():  # this shard is done: merge if the others are
+        return merge_shards(cell_dir, plot=bool(cfg["plot"]), require_all=False)
     cfg_eval = OmegaConf.create(
         {
             "scenes": str(scenes),
@@ -123,10 +130,25 @@ def evaluate_cell(
             "seed": int(cfg["eval_seed"]),
             "plot": bool(cfg["plot"]),
             "video": False,
+            "shard": None if shard is None else shard.name,
         }
     )
     label = f"{run_cfg.backend.name} -> {eval_backend} (randomization={randomization})"
-    return evaluate_run(eval_config(run_cfg, eval_backend, randomization), run_dir, cell_dir, cfg_eval, label=label)
+    summary = evaluate_run(eval_config(run_cfg, eval_backend, randomization), run_dir, cell_dir, cfg_eval, label=label)
+    return summary if shard is None or summary_path.is_file() else None
+
+
+def _row(cell: tuple, summary: dict | None) -> dict:
+    run, run_cfg, eval_backend, randomization, cell_dir = cell
+    summary = summary or {}
+    return {
+        "train_backend": run_cfg.backend.name,
+        "eval_backend": eval_backend,
+        "randomization": randomization,
+        **{k: summary.get(k) for k in SUMMARY_METRICS},
+        "run": str(run),
+        "eval_dir": str(cell_dir),
+    }
 
 
 # -- 3. outputs ---------------------------------------------------------------------------------
@@ -295,25 +317,32 @@ def transfer_matrix(cfg: dict, train_overrides: list[str]) -> list[dict]:
         flush=True,
     )
 
-    rows = []
+    cells, rows = [], []
     for run in runs:
         run_cfg = configs[run]
         name = run.relative_to(runs_root).as_posix() if run != runs_root else run.name
         for eval_backend in evals:
             for rand in cfg["randomization"]:
                 cell_dir = out / "eval" / f"{name.replace('/', '_')}_{run_cfg.backend.name}" / f"{eval_backend}_{rand}"
+                cell = (run, run_cfg, eval_backend, rand, cell_dir)
+                cells.append(cell)
                 summary = evaluate_cell(run, run_cfg, eval_backend, rand, scenes, cell_dir, cfg)
-                rows.append(
-                    {
-                        "train_backend": run_cfg.backend.name,
-                        "eval_backend": eval_backend,
-                        "randomization": rand,
-                        **{k: summary.get(k) for k in SUMMARY_METRICS},
-                        "run": str(run),
-                        "eval_dir": str(cell_dir),
-                    }
-                )
-                write_csv(out / "matrix.csv", rows)  # partial results survive an interruption
+                if not cfg.get("shard"):
+                    rows.append(_row(cell, summary))
+                    write_csv(out / "matrix.csv", rows)  # partial results survive an interruption
+    if cfg.get("shard"):
+        # every cell again: other shard processes may have completed cells meanwhile; only the
+        # process that finds every cell complete writes the outputs
+        summaries = [evaluate_cell(run, rc, eb, rand, scenes, cell_dir, cfg) for run, rc, eb, rand, cell_dir in cells]
+        waiting = [str(cell[-1]) for cell, summary in zip(cells, summaries) if summary is None]
+        if waiting:
+            print(
+                f"shard {cfg['shard']} of every cell done; {len(waiting)} of {len(cells)} cells wait for other "
+                f"shards ({', '.join(waiting)}); the process completing the last of them writes the matrix"
+            )
+            return []
+        rows = [_row(cell, summary) for cell, summary in zip(cells, summaries)]
+        write_csv(out / "matrix.csv", rows)
     table = write_outputs(out, rows, train_backends, evals, list(cfg["randomization"]))
     print(table)
     print(f"transfer matrix in {out} (matrix.csv, matrix.md, heatmap_success.png, heatmap_success_time.png)")

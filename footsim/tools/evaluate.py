@@ -1,5 +1,9 @@
 """``footsim-eval run=RUN_DIR | controller=velocity|footstep [overrides]``: evaluate a trained run or a
-baseline on a scene set (:mod:`footsim.rl.evaluate`); a Hydra app on ``conf/eval.yaml``."""
+baseline on a scene set (:mod:`footsim.rl.evaluate`); a Hydra app on ``conf/eval.yaml``.
+
+``shard=K/N`` evaluates one slice of the scenes; the shards of one evaluation share a directory:
+the Hydra output dir of a single run (``hydra.run.dir=DIR``) or, in a multirun
+(``-m shard=0/4,1/4,2/4,3/4``), the sweep dir.  ``merge=DIR`` merges them (no evaluation)."""
 
 from __future__ import annotations
 
@@ -7,25 +11,38 @@ from pathlib import Path
 
 import hydra
 from hydra.core.hydra_config import HydraConfig
+from hydra.types import RunMode
 
 from footsim.config import conf_dir
-from footsim.rl.evaluate import eval_run_config, evaluate_baseline, evaluate_run
+from footsim.rl.evaluate import eval_run_config, evaluate_baseline, evaluate_run, merge_shards, shard_of
 from footsim.schema import register_schemas
 from footsim.utils import note_not_honoured
 
 
-def _main(cfg) -> dict:
+def _out_dir(cfg) -> Path:
+    """Where the results go: the job's output dir; for the shards of a multirun, the sweep dir they share."""
+    hydra_cfg = HydraConfig.get()
+    if shard_of(cfg) is not None and hydra_cfg.mode == RunMode.MULTIRUN:
+        return Path(hydra_cfg.sweep.dir)
+    return Path(hydra_cfg.runtime.output_dir)
+
+
+def _main(cfg) -> dict | None:
+    if cfg.get("merge"):
+        try:
+            return merge_shards(Path(cfg.merge).expanduser(), plot=bool(cfg.plot))
+        except (FileNotFoundError, ValueError) as err:
+            raise SystemExit(f"footsim-eval: {err}") from None
     controller = cfg.get("controller")
     if controller is not None and controller.get("name", "policy") != "policy":
         if cfg.run is not None:
             note_not_honoured(f"controller={controller.name}", "evaluating the baseline", f"run={cfg.run}")
-        return evaluate_baseline(cfg, Path(HydraConfig.get().runtime.output_dir))
+        return evaluate_baseline(cfg, _out_dir(cfg))
     if cfg.run is None:
         raise SystemExit("footsim-eval: run=RUN_DIR is required (or controller=velocity|footstep for a baseline)")
     run_dir = Path(cfg.run).expanduser().resolve()
     run_cfg = eval_run_config(run_dir, cfg)
-    out_dir = Path(HydraConfig.get().runtime.output_dir)
-    return evaluate_run(run_cfg, run_dir, out_dir, cfg)
+    return evaluate_run(run_cfg, run_dir, _out_dir(cfg), cfg)
 
 
 def main() -> None:

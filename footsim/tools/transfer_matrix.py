@@ -14,11 +14,12 @@ from omegaconf import OmegaConf
 
 from footsim.backends.base import require_known_backends
 from footsim.config import conf_dir
+from footsim.rl.evaluate import Shard
 from footsim.rl.transfer_matrix import transfer_matrix
 
 USAGE = (
     "usage: footsim-transfer-matrix [backends=pymunk,mujoco] [eval_backends=...] [runs=MULTIRUN_DIR] [out=DIR] "
-    "[scenes=FILE | n_scenes=N scenes_seed=S] [randomization=none,default] [launcher=local] "
+    "[scenes=FILE | n_scenes=N scenes_seed=S] [randomization=none,default] [launcher=local] [shard=K/N] "
     "[footsim-train overrides ...]"
 )
 
@@ -54,6 +55,16 @@ def parse_args(argv: list[str]) -> tuple[dict, list[str]]:
     if not cfg["randomization"]:
         cfg["randomization"] = ["none"]
     require_known_backends((cfg["backends"] or []) + (cfg["eval_backends"] or []), "footsim-transfer-matrix")
+    if cfg["shard"] is not None:
+        try:
+            cfg["shard"] = Shard.parse(cfg["shard"]).name
+        except ValueError as err:
+            raise SystemExit(f"footsim-transfer-matrix: {err}") from None
+        if not cfg["runs"] or not cfg["out"]:
+            raise SystemExit(
+                "footsim-transfer-matrix: shard=K/N evaluates trained runs into a shared directory: "
+                "give runs=DIR and out=DIR (train first, once)"
+            )
     if cfg["runs"] and train_overrides:
         raise SystemExit(
             f"footsim-transfer-matrix: runs= reuses trained policies; unknown keys {train_overrides} "
