@@ -218,7 +218,7 @@ def timestep_convergence(
     :data:`CONVERGED_YAW` apart."""
     overrides = dict(backend_overrides or {})
     base = make_backend(backend, walk, robot, overrides)
-    physics_dt, control_dt = base.physics_dt, base.control_dt  # type: ignore[attr-defined]
+    physics_dt, control_dt = base.physics_dt, base.control_dt
     runs = []
     try:
         runs.append({s.name: run_sequence(base, s) for s in required_sequences()})
@@ -231,7 +231,7 @@ def timestep_convergence(
         runs.append({s.name: run_sequence(fine, s) for s in required_sequences()})
     finally:
         fine.close()
-    rows = []
+    rows: list[dict[str, Any]] = []
     for s in required_sequences():
         a, b = runs[0][s.name], runs[1][s.name]
         fell_a, fell_b = bool(a["fell"] or a["sim_error"]), bool(b["fell"] or b["sim_error"])

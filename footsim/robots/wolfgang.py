@@ -143,7 +143,7 @@ def _to_foot(side: str, xyz, rpy=(0.0, 0.0, 0.0)) -> Origin:
     local = Origin(xyz, rpy).matrix
     pose = sole @ local
     # Every sole-frame shape here is axis-aligned in the sole frame: the rpy is the sole's.
-    return Origin(tuple(pose[:3, 3]), SOLES[side][1].rpy)  # type: ignore[arg-type]
+    return Origin(tuple(pose[:3, 3]), SOLES[side][1].rpy)
 
 
 def _foot_shapes(side: str) -> tuple:
@@ -170,7 +170,7 @@ def _segment(start, end, radius: float, self_collision: bool = False) -> Capsule
     R = np.column_stack([x, np.cross(z, x), z])
     pitch = math.asin(max(-1.0, min(1.0, -R[2, 0])))
     rpy = (math.atan2(R[2, 1], R[2, 2]), pitch, math.atan2(R[1, 0], R[0, 0]))
-    return Capsule(radius, max(length - 2 * radius, 1e-3), Origin(tuple((a + b) / 2.0), rpy), self_collision)  # type: ignore[arg-type]
+    return Capsule(radius, max(length - 2 * radius, 1e-3), Origin(tuple((a + b) / 2.0), rpy), self_collision)
 
 
 def _child_point(link: str) -> tuple[float, float, float]:

@@ -329,8 +329,8 @@ def wolfgang_simplified() -> RobotSpec:
         links=tuple(links),
         joints=tuple(joints),
         soles={
-            "left": ("l_foot", (0.0, 0.0, -ANKLE_TO_SOLE)),
-            "right": ("r_foot", (0.0, 0.0, -ANKLE_TO_SOLE)),
+            "left": ("l_foot", Origin((0.0, 0.0, -ANKLE_TO_SOLE))),
+            "right": ("r_foot", Origin((0.0, 0.0, -ANKLE_TO_SOLE))),
         },
         walk_ready=walk_ready,
     )

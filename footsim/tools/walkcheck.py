@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import sys
 
-import yaml
+from omegaconf import OmegaConf
 
 from footsim.backends.base import require_known_backends
 from footsim.calibration.walkcheck import timestep_convergence, walkcheck
@@ -22,12 +22,14 @@ GROUPS = ("backend", "walk", "robot")
 def split_overrides(argv: list[str]) -> tuple[list[str], dict[str, dict]]:
     """``(the tool's own key=value arguments, {group: {key: value}})`` from ``group.key=value``
     arguments (values parsed as YAML, as Hydra does)."""
-    own, groups = [], {g: {} for g in GROUPS}
+    own: list[str] = []
+    groups: dict[str, dict] = {g: {} for g in GROUPS}
     for arg in argv:
         key, sep, value = arg.partition("=")
         group, dot, field = key.partition(".")
         if sep and dot and group in GROUPS and field:
-            groups[group][field] = yaml.safe_load(value)
+            parsed = OmegaConf.to_container(OmegaConf.create(f"v: {value}"))  # YAML values, as Hydra reads them
+            groups[group][field] = parsed["v"] if isinstance(parsed, dict) else value
         else:
             own.append(arg)
     return own, groups
