@@ -137,7 +137,8 @@ def test_eval_says_what_it_uses_instead_of_what_it_does_not_take_as_given(tiny_r
     assert out.startswith("backend=mujoco: walking with the mujoco backend's walk preset (conf/walk/mujoco.yaml); ")
     assert "ignoring the run's walk (walk." in out
     assert (
-        run_cfg.backend.name == "mujoco" and run_cfg.walk.freq == OmegaConf.load(conf_dir() / "walk/mujoco.yaml").freq
+        run_cfg.backend.name == "mujoco"
+        and run_cfg.walk.freq == OmegaConf.load(conf_dir() / "walk/bitbots_sim.yaml").freq
     )
     # a run with its own gait, evaluated on its own backend with another option: it keeps its walk
     tuned = OmegaConf.load(nav_run / "config.yaml")

@@ -354,12 +354,7 @@ def make_backend(backend: str, walk: str | None = None) -> Backend:
     backend's own walk preset), or with the walk preset ``walk``."""
     from footsim.calibration.walkcheck import make_backend as walkcheck_backend
 
-    if walk is None:
-        return walkcheck_backend(backend)
-    robot = fconf.build_robot("wolfgang")
-    return fconf.build_backend(
-        fconf.load_preset("backend", {"name": backend}), robot, fconf.build_walk(fconf.load_preset("walk", walk))
-    )
+    return walkcheck_backend(backend, walk)
 
 
 def capability_map(
