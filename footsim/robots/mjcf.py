@@ -48,6 +48,39 @@ def sole_site(side: Side | str) -> str:
     return sole_frame_name(side)
 
 
+def touch_site(side: Side | str) -> str:
+    """Name of the touch-sensor site of ``side``'s foot: ``'l_foot_touch'`` / ``'r_foot_touch'``."""
+    return sole_frame_name(side)[0] + "_foot_touch"
+
+
+def touch_sensor(side: Side | str) -> str:
+    """Name of the touch sensor of ``side``'s foot (MuJoCo's summed contact normal force [N])."""
+    return touch_site(side)
+
+
+# The touch box reaches this far above the sole plane and beyond the foot's shapes [m].
+_TOUCH_HEIGHT, _TOUCH_MARGIN = 0.03, 0.01
+
+
+def _foot_touch_box(spec: RobotSpec, side: str) -> tuple[np.ndarray, np.ndarray]:
+    """(half sizes, centre in the foot frame) of the box, in sole-frame axes, that holds every
+    foot shape's centre ± its extent from ``_TOUCH_MARGIN`` below the lowest point up to
+    ``_TOUCH_HEIGHT`` above the sole frame."""
+    foot, origin = spec.sole(side)
+    to_sole = np.linalg.inv(origin.matrix)
+    points = []
+    for shape in spec.link(foot).shapes:
+        centre = (to_sole @ shape.origin.matrix)[:3, 3]
+        reach = max(getattr(shape, "size", (0.0, 0.0, 0.0))[:2]) / 2.0 + getattr(shape, "radius", 0.0)
+        points += [centre[:2] + reach, centre[:2] - reach]
+    xy = np.array(points)
+    low = spec.sole_clearance(side) - _TOUCH_MARGIN
+    lo = np.array([*xy.min(axis=0) - _TOUCH_MARGIN, low])
+    hi = np.array([*xy.max(axis=0) + _TOUCH_MARGIN, _TOUCH_HEIGHT])
+    centre_sole = (lo + hi) / 2.0
+    return (hi - lo) / 2.0, origin.matrix[:3, :3] @ centre_sole + np.asarray(origin.xyz)
+
+
 def import_mujoco():
     """Import mujoco, or fail with the extra to install."""
     try:
@@ -197,6 +230,24 @@ def build_mjcf(
     for side_name, (foot, origin) in spec.soles.items():
         mj.body(foot).add_site(
             name=sole_site(side_name), pos=list(origin.xyz), quat=_quat(origin.rotation), size=[0.005, 0.0, 0.0]
+        )
+        # The foot's contact sensor: a box site around every foot shape's lowest part; MuJoCo's touch
+        # sensor sums the normal forces of the contacts inside it (what the phase reset reads).
+        half, centre = _foot_touch_box(spec, side_name)
+        touch = mj.body(foot).add_site(
+            name=touch_site(side_name),
+            type=mujoco.mjtGeom.mjGEOM_BOX,
+            pos=list(centre),
+            quat=_quat(origin.rotation),
+            size=list(half),
+            rgba=[0.0, 0.0, 0.0, 0.0],
+        )
+        touch.group = 5
+        mj.add_sensor(
+            name=touch_sensor(side_name),
+            type=mujoco.mjtSensor.mjSENS_TOUCH,
+            objtype=mujoco.mjtObj.mjOBJ_SITE,
+            objname=touch_site(side_name),
         )
 
     for joint in (j for j in spec.joints if j.name not in rigid):

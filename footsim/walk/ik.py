@@ -25,6 +25,7 @@ percent of the leg, so each pass shrinks the error by about that factor).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -63,9 +64,9 @@ class LegChain:
         if any(abs(s) != 1.0 for s in self.signs):
             raise ValueError(f"LegChain.signs must be ±1, got {self.signs!r}")
 
-    @property
+    @functools.cached_property
     def vector(self) -> np.ndarray:
-        """The parameters as one float array (the compiled IK's argument)."""
+        """The parameters as one float array (the compiled IK's argument; built once)."""
         return np.array(
             [
                 *self.hip_yaw,

@@ -18,7 +18,7 @@ from footsim.backends.base import RenderOverlay
 from footsim.backends.control import ServoFeedForward, all_finite
 from footsim.backends.mujoco_family.randomization import MujocoRandomization
 from footsim.backends.physics3d import PhysicsSim, levelling_rotation
-from footsim.robots.mjcf import CONTACT_FRICTION, import_mujoco
+from footsim.robots.mjcf import CONTACT_FRICTION, import_mujoco, touch_sensor
 from footsim.robots.spec import RobotSpec
 from footsim.walk.ik import LEG_JOINT_NAMES
 
@@ -240,7 +240,8 @@ class MujocoModelOptions:
             raise ValueError(f"backend.rigid_upper_body must be true or false, got {rigid_upper_body!r}")
         self.rigid_upper_body = bool(rigid_upper_body)
         self.joint_names: tuple[str, ...] = ()  # the robot joints the built model has
-        self._foot_bodies: tuple[int, ...] = ()  # (left, right) foot body ids: sole_forces
+        self._foot_bodies: tuple[int, ...] = ()  # (left, right) foot body ids
+        self._touch_adr: tuple[int, ...] = ()  # (left, right) touch-sensor addresses: sole_forces
         self._rigid_joints: frozenset[str] = frozenset()
 
     def _model_joints(self, robot: RobotSpec) -> None:
@@ -259,6 +260,9 @@ class MujocoModelOptions:
             m.geom_solref[:] = self.contact_solref
         self._foot_bodies = tuple(
             name2id(m, mujoco.mjtObj.mjOBJ_BODY, robot.foot_link(side)) for side in ("left", "right")
+        )
+        self._touch_adr = tuple(
+            int(m.sensor_adr[name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, touch_sensor(side))]) for side in ("left", "right")
         )
         feet = set(self._foot_bodies)
         for g in (g for g in range(m.ngeom) if int(m.geom_bodyid[g]) in feet):  # torsional / rolling friction
@@ -298,18 +302,11 @@ class MujocoEngineSim(MujocoModelOptions, MujocoRandomization, PhysicsSim):
         return bool(self._obstacle_mask[data.contact.geom].any())
 
     def sole_forces(self) -> tuple[float, float]:
-        m, data = self.mj_model_data()
-        forces = [0.0, 0.0]
-        if data.ncon == 0:
-            return 0.0, 0.0
-        bodies = m.geom_bodyid[data.contact.geom]  # (ncon, 2)
-        wrench = np.zeros(6)
-        for i, pair in enumerate(bodies.tolist()):
-            for side, body in enumerate(self._foot_bodies):
-                if body in pair:
-                    mujoco.mj_contactForce(m, data, i, wrench)  # in the contact frame: [0] = normal
-                    forces[side] += float(wrench[0])
-        return forces[0], forces[1]
+        # The feet's touch sensors (footsim.robots.mjcf): MuJoCo sums each foot's contact normal
+        # forces during the step, so reading them is two array lookups.
+        _, data = self.mj_model_data()
+        left, right = self._touch_adr
+        return float(data.sensordata[left]), float(data.sensordata[right])
 
     def sim_error(self) -> str | None:
         s = self.state
