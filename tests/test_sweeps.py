@@ -200,6 +200,13 @@ def test_experiment_presets_compose():
     )
     cfg = _compose("+experiment=thesis_3d", "backend=pybullet")  # the walk follows the backend
     assert (cfg.backend.name, cfg.hydra.runtime.choices.walk, cfg.walk.freq) == ("pybullet", "pybullet", 1.2)
+    cfg = _compose("+experiment=footstepnav_v0")  # the old setup, by name
+    assert (cfg.backend.name, cfg.backend.physics_dt, cfg.robot.name, cfg.walk.freq) == (
+        "mujoco",
+        0.01,
+        "wolfgang_simplified",
+        0.819559,
+    )
     cfg = _compose("+experiment=dr_mujoco")
     assert (cfg.backend.name, cfg.hydra.runtime.choices.walk, cfg.noise.name, cfg.randomization.name) == (
         "mujoco",
