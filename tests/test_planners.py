@@ -137,6 +137,46 @@ def test_footstep_plan_within_limits_and_clear_of_obstacles(seed):
     assert final.distance_to(scene.goal) < 1e-6 and abs(final.theta - scene.goal.theta) < 1e-6
 
 
+def _capability_csv(path, unstable):
+    """A same-step capability map over {-1, -0.5, 0, 0.5, 1}^3; cells where ``unstable(x, y, θ)`` fell."""
+    lines = ["right_x,right_y,right_theta,left_x,left_y,left_theta,fall_rate,n,falls"]
+    grid = (-1.0, -0.5, 0.0, 0.5, 1.0)
+    for x in grid:
+        for y in grid:
+            for t in grid:
+                rate = 1.0 if unstable(x, y, t) else 0.0
+                lines.append(f"{x},{y},{t},{x},{y},{t},{rate},2,{int(2 * rate)}")
+    path.write_text("\n".join(lines) + "\n")
+    return str(path)
+
+
+def test_footstep_planner_keeps_to_the_stable_region(tmp_path):
+    """With a map where every full forward step (x = 1) falls, the transition set has no footstep
+    of x = limits.x on either side; with the threshold at 1 every footstep is back; bad files are named."""
+    scene = Scene(goal=Pose2D(1.0, 0.0, 0.0))
+    csv = _capability_csv(tmp_path / "map.csv", lambda x, y, t: x == 1.0)
+    full = FootstepPlanner(GEOMETRY, TRUNK, scene, FootstepParams())
+    stable = FootstepPlanner(GEOMETRY, TRUNK, scene, FootstepParams(stable_region=csv))
+    loose = FootstepPlanner(GEOMETRY, TRUNK, scene, FootstepParams(stable_region=csv, stable_max_fall_rate=1.0))
+    for side in (Side.LEFT, Side.RIGHT):
+        xs = [step.x for step in stable.transitions[side][0]]
+        assert xs and max(xs) == pytest.approx(0.5 * LIMITS.x)  # x_fracs (-0.5, 0, 0.5, 1): the 1 is gone
+        assert len(stable.transitions[side][0]) == len(full.transitions[side][0]) - 9  # 3 y × 3 θ at x = 1
+        assert len(loose.transitions[side][0]) == len(full.transitions[side][0])
+    feet = GEOMETRY.initial_feet()
+    plan = stable.plan(feet.left, feet.right)
+    # every planned footstep (the goal shot too) lies nearer to a stable cell than to an x = 1 cell
+    assert plan.status == "ok" and all(step.x / LIMITS.x < 0.75 for _, step in plan.steps)
+    everything = _capability_csv(tmp_path / "all.csv", lambda x, y, t: True)
+    with pytest.raises(ValueError, match="no footstep of the transition set is stable"):
+        FootstepPlanner(GEOMETRY, TRUNK, scene, FootstepParams(stable_region=everything))
+    (tmp_path / "bad.csv").write_text("a,b\n1,2\n")
+    with pytest.raises(ValueError, match="not a footsim-capability CSV"):
+        FootstepPlanner(GEOMETRY, TRUNK, scene, FootstepParams(stable_region=str(tmp_path / "bad.csv")))
+    with pytest.raises(ValueError, match="stable_max_fall_rate"):
+        FootstepParams(stable_max_fall_rate=2.0)
+
+
 def test_feet_from_nav_inverts_the_double_step():
     feet = GEOMETRY.initial_feet(Pose2D(0.3, -0.2, 0.4))
     step = DoubleStep(Footstep(0.1, -0.05, -0.3), Footstep(0.12, 0.02, 0.1))

@@ -30,6 +30,7 @@ double step.
 
 from __future__ import annotations
 
+import csv
 import heapq
 import math
 import time
@@ -66,6 +67,10 @@ class FootstepParams:
     lateral_cost: float = 0.3  # per limits.y stepped sideways
     max_expansions: int = 20000
     reuse_plan: bool = True  # seed each replan with the rest of the previous plan (when still valid)
+    # A capability map (footsim-capability's capability.csv): only footsteps whose nearest same-step
+    # cell fell in at most stable_max_fall_rate of its trials are planned (None: every footstep).
+    stable_region: str | None = None
+    stable_max_fall_rate: float = 0.0
 
     def __post_init__(self) -> None:
         if not self.time_budget_s > 0:
@@ -78,6 +83,8 @@ class FootstepParams:
                 raise ValueError(f"controller.{key} must be fractions of the step limits in [-1, 1], got {values!r}")
         if not (self.lattice_xy > 0 and int(self.lattice_theta_bins) >= 4 and self.resolution > 0):
             raise ValueError("controller.lattice_xy and resolution must be > 0, lattice_theta_bins >= 4")
+        if not 0.0 <= self.stable_max_fall_rate <= 1.0:
+            raise ValueError(f"controller.stable_max_fall_rate must be in [0, 1], got {self.stable_max_fall_rate!r}")
 
     @classmethod
     def from_mapping(cls, mapping) -> FootstepParams:
@@ -141,6 +148,40 @@ class _Rects:
         return (qu * qu + qv * qv < self.r2[None, :]).any(axis=1)
 
 
+class StableRegion:
+    """The stable part of the action box from a capability map (``footsim-capability``'s CSV): a
+    footstep (as unit action x, y, θ of the robot's step limits) is allowed when the nearest
+    same-step cell (both feet taking that step) fell in at most ``max_fall_rate`` of its trials."""
+
+    _cache: dict[tuple[str, float], StableRegion] = {}
+
+    def __init__(self, cells: np.ndarray, fall_rates: np.ndarray, max_fall_rate: float):
+        self.cells, self.fall_rates, self.max_fall_rate = cells, fall_rates, float(max_fall_rate)
+
+    @classmethod
+    def load(cls, path: str, max_fall_rate: float) -> StableRegion:
+        key = (str(path), float(max_fall_rate))
+        if key not in cls._cache:
+            try:
+                with open(path, newline="") as f:
+                    rows = list(csv.DictReader(f))
+            except OSError as err:
+                raise ValueError(f"controller.stable_region: cannot read {path}: {err}") from None
+            needed = ("right_x", "right_y", "right_theta", "left_x", "left_y", "left_theta", "fall_rate")
+            if not rows or any(k not in rows[0] for k in needed):
+                raise ValueError(f"controller.stable_region: {path} is not a footsim-capability CSV (columns {needed})")
+            same = [r for r in rows if all(r[f"right_{a}"] == r[f"left_{a}"] for a in ("x", "y", "theta"))]
+            if not same:
+                raise ValueError(f"controller.stable_region: {path} has no same-step cells (make it with grid=same:N)")
+            cells = np.array([[float(r["right_x"]), float(r["right_y"]), float(r["right_theta"])] for r in same])
+            cls._cache[key] = cls(cells, np.array([float(r["fall_rate"]) for r in same]), max_fall_rate)
+        return cls._cache[key]
+
+    def allows(self, x: float, y: float, theta: float) -> bool:
+        nearest = int(np.argmin(np.sum((self.cells - (x, y, theta)) ** 2, axis=1)))
+        return bool(self.fall_rates[nearest] <= self.max_fall_rate)
+
+
 class FootstepPlanner:
     """Plans footsteps on one scene (the map and goal are fixed; starts change per replan)."""
 
@@ -170,11 +211,16 @@ class FootstepPlanner:
         # checked rectangles (both feet and the trunk)
         self.transitions: dict[Side, tuple[list[Footstep], np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
         lim = self.limits
+        self.stable = stable = (
+            None if p.stable_region is None else StableRegion.load(p.stable_region, p.stable_max_fall_rate)
+        )
         for side in (Side.LEFT, Side.RIGHT):
             seen, steps, rels, costs = set(), [], [], []
             for fx in p.x_fracs:
                 for fy in p.y_fracs:
                     for ft in p.theta_fracs:
+                        if stable is not None and not stable.allows(fx, side.sign * fy, side.sign * ft):
+                            continue
                         step = Footstep(fx * lim.x, side.sign * fy * lim.y, side.sign * ft * lim.theta)
                         rel, done, _ = geometry.landing(side, step)
                         key = (round(rel.x, 6), round(rel.y, 6), round(rel.theta, 6))
@@ -190,6 +236,11 @@ class FootstepPlanner:
                             + p.lateral_cost * abs(done.y) / lim.y
                         )
             k = len(steps)
+            if k == 0:
+                raise ValueError(
+                    f"controller.stable_region {p.stable_region}: no footstep of the transition set is stable "
+                    f"(stable_max_fall_rate {p.stable_max_fall_rate})"
+                )
             half_l = np.concatenate([np.full(2 * k, self.foot_half[0]), np.full(k, self.trunk_half[0])])
             half_w = np.concatenate([np.full(2 * k, self.foot_half[1]), np.full(k, self.trunk_half[1])])
             self.transitions[side] = (steps, np.array(rels, dtype=float), np.array(costs, dtype=float), half_l, half_w)
@@ -263,6 +314,8 @@ class FootstepPlanner:
         lim = self.limits
         tol = 1e-9
         if abs(step.x) > lim.x + tol or abs(step.y) > lim.y + tol or abs(step.theta) > lim.theta + tol:
+            return None
+        if self.stable is not None and not self.stable.allows(step.x / lim.x, step.y / lim.y, step.theta / lim.theta):
             return None
         landed, done, interfered = geo.landing(Side.RIGHT, step)
         if interfered:
