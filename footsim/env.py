@@ -35,6 +35,11 @@ class DeferredGenerator:
         self._generator: np.random.Generator | None = None
 
     @property
+    def created(self) -> bool:
+        """Has the generator been created (by a first draw)?"""
+        return self._generator is not None
+
+    @property
     def generator(self) -> np.random.Generator:
         if self._generator is None:
             self._generator = np.random.default_rng(self.seed)
@@ -96,6 +101,7 @@ class FootstepEnv(gym.Env):
         if task is None:
             task = "nav_obstacles" if obstacles else "nav"
         self.config = fconf.env_config(backend, task, noise, robot, walk, randomization)
+        self.episode_seeds: dict[str, int] = {}  # filled by reset()
         if obstacles is not None and bool(obstacles) != bool(self.config["task"].get("obstacles")):
             raise ValueError(f"obstacles={obstacles} contradicts task {self.config['task'].get('name')!r}")
         self.sampler, task_config = fconf.build_task(self.config["task"])
@@ -160,6 +166,12 @@ class FootstepEnv(gym.Env):
             else np.random.default_rng(backend_seed)
         )
         self._random_rng = DeferredGenerator(raw() >> 1)
+        #: This episode's seeds of the noise, backend and randomization streams.
+        self.episode_seeds = {
+            "noise": self._noise_rng.seed,
+            "backend": backend_seed,
+            "randomization": self._random_rng.seed,
+        }
         self._randomization = {}
         if self.randomizer.active:
             self._randomization = self.randomizer.episode(self._random_rng)

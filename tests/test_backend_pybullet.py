@@ -227,7 +227,7 @@ def test_create_reset_close_cycles_do_not_leak(backend):
     for _ in range(200):
         b = PybulletBackend(backend.robot, backend.walk)
         b.reset(EMPTY, rng)
-        paths.append(b.sim._urdf_path)
+        paths.append(b.sim.urdf_path)
         b.close()
     end = _rss_mb()
     assert after_resets - before < 10.0, f"RSS grew {after_resets - before:.1f} MB over 200 resets"
@@ -350,7 +350,7 @@ def test_servo_motor_applies_mujocos_actuator_law():
             force = kp * (ctrl - angle) - kv * velocity
             saturated += abs(force) > effort
             expected.append(np.clip(force, -effort, effort) - damping * velocity)
-        np.testing.assert_allclose(sim._servo_torques(), expected, rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(sim.servo_torques(), expected, rtol=1e-9, atol=1e-9)
         assert 0 < saturated < 12  # both branches of the clip exercised
     finally:
         b.close()

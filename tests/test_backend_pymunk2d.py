@@ -239,7 +239,7 @@ def test_deferred_generator_is_the_seeded_generator():
     from footsim.env import DeferredGenerator
 
     lazy, eager = DeferredGenerator(1234), np.random.default_rng(1234)
-    assert lazy._generator is None  # nothing created until first use
+    assert not lazy.created  # nothing created until first use
     np.testing.assert_array_equal(lazy.normal(0.0, 1.0, 3), eager.normal(0.0, 1.0, 3))
     assert lazy.random() == eager.random() and lazy.uniform(-1, 2) == eager.uniform(-1, 2)
 

@@ -59,7 +59,7 @@ def test_episode_streams_are_integers_draws_of_the_env_rng():
     reference = np.random.default_rng(11)  # gymnasium's np_random for seed 11
     reference.standard_normal(3)  # the scene: goal x, y, theta
     seeds = [int(reference.integers(2**63)) for _ in range(3)]
-    assert [env._noise_rng.seed, env.backend._rng.seed, env._random_rng.seed] == seeds
+    assert [env.episode_seeds[k] for k in ("noise", "backend", "randomization")] == seeds
 
 
 def test_success_adds_the_remaining_steps():

@@ -271,7 +271,7 @@ def test_pushes_follow_the_schedule_and_move_the_base(env):
     b = env.backend
     forces = []
     original = b.sim.apply_base_force
-    b.sim.apply_base_force = lambda f: (forces.append((b._tick, np.array(f))), original(f))
+    b.sim.apply_base_force = lambda f: (forces.append((b.tick, np.array(f))), original(f))
     try:
         _fresh(b, {"push_force": 25.0, "push_duration": 0.1, "push_interval": 0.3})
         forces.clear()

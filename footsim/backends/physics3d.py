@@ -684,6 +684,11 @@ class Physics3DBackend(Backend):
             max_tilt=self._max_tilt if error is None else 0.0,
         )
 
+    @property
+    def tick(self) -> int:
+        """Control ticks since the last reset."""
+        return self._tick
+
     # -- truth ----------------------------------------------------------------------------
     def planar_pose(self) -> Pose2D:
         """The base projected on the ground: (x, y, yaw of the trunk's x axis)."""

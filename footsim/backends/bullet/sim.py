@@ -347,7 +347,7 @@ class PybulletSim(PhysicsSim):
         if self.motor == "servo":
             # Torque mode: Bullet's leg motors become the joints' dry friction (a velocity motor to
             # 0 with the servo's frictionloss as its force, as MuJoCo's frictionloss); the servo law
-            # is applied as a torque every tick (_servo_torques).
+            # is applied as a torque every tick (servo_torques).
             frictionloss = [self.spec.joint(n).servo.frictionloss for n in LEG_JOINT_NAMES]
             p.setJointMotorControlArray(
                 self.robot_id,
@@ -506,7 +506,7 @@ class PybulletSim(PhysicsSim):
 
     def write_command(self) -> None:
         """Position motors: the command as their targets.  Servo mode: nothing to send (the servo
-        law turns the command into torques every physics step, ``_servo_torques``)."""
+        law turns the command into torques every physics step, ``servo_torques``)."""
         if self.motor == "servo":
             return
         p.setJointMotorControlArray(
@@ -520,7 +520,12 @@ class PybulletSim(PhysicsSim):
             physicsClientId=self.client,
         )
 
-    def _servo_torques(self) -> list[float]:
+    @property
+    def urdf_path(self) -> str | None:
+        """The temporary URDF file this sim's world loaded (removed when the world is released)."""
+        return self._urdf_path
+
+    def servo_torques(self) -> list[float]:
         """MuJoCo's actuator law: clip(kp (ctrl − q) − kv q̇, ±effort) − damping q̇ per leg joint."""
         states = p.getJointStates(self.robot_id, self.leg_indices, physicsClientId=self.client)
         torques = []
@@ -537,7 +542,7 @@ class PybulletSim(PhysicsSim):
                 if self._wrench:
                     self._apply_wrench()
                 p.setJointMotorControlArray(
-                    body, legs, p.TORQUE_CONTROL, forces=self._servo_torques(), physicsClientId=c
+                    body, legs, p.TORQUE_CONTROL, forces=self.servo_torques(), physicsClientId=c
                 )
                 p.stepSimulation(physicsClientId=c)
             return
