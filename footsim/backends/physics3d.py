@@ -468,7 +468,6 @@ class Physics3DBackend(Backend):
         one tick of the module docstring: read the state, the control law (stabilizer unless
         ``stabilized`` is False, latency, servo feed-forward), send the commands, the push
         schedule, and the physics of one control period."""
-        s = self.sim.state
         targets, trunk = trajectory.joint_targets, trajectory.trunk_in_support  # roll, pitch: as in .trunk
         gains = self._stabilizer_gains if (stabilized and self.stabilizer.active) else None
         walk = self.walk_current
@@ -477,18 +476,8 @@ class Physics3DBackend(Backend):
         if walk.engine_freq is not None or pid is not None or reset:
             return self._node_ticks(trajectory, gains, pid, reset)
         delay, slot = self._delay_line(), self._delay_slot
-        quat, w_last, frame, feed_forward, command, leg_ids = (
-            s.quat,
-            s.w_last,
-            s.frame,
-            s.feed_forward,
-            s.command,
-            s.leg_ids,
-        )
         tick = self._control_tick(targets, trunk, gains, delay)
-        read = None if (s.live or gains is None) else self.sim.read_state
-        write = None if s.live else self.sim.write_command
-        push = None if self._push_ticks is None else self._push_tick
+        (quat, w_last, frame, feed_forward, command, leg_ids), read, write, push = self._tick_io(gains is not None)
         advance, substeps = self.sim.advance, self.substeps
 
         def run(k0: int, k1: int) -> int | None:
@@ -517,22 +506,12 @@ class Physics3DBackend(Backend):
         An engine update is due at tick k when ``floor(t_k · engine_freq)`` (``t_k``: the tick's
         engine time) has moved on since the last one: at most ``engine_freq`` updates a second,
         each seen at the first control tick at or after its instant."""
-        s = self.sim.state
         walk = self.walk_current
         targets, trunk = trajectory.joint_targets.copy(), trajectory.trunk_in_support.copy()
         delay, slot = self._delay_line(), self._delay_slot
-        quat, w_last, frame, feed_forward, command, leg_ids = (
-            s.quat,
-            s.w_last,
-            s.frame,
-            s.feed_forward,
-            s.command,
-            s.leg_ids,
-        )
         tick = self._control_tick(targets, trunk, gains, delay)
-        read = None if (s.live or (gains is None and pid is None)) else self.sim.read_state
-        write = None if s.live else self.sim.write_command
-        push = None if self._push_ticks is None else self._push_tick
+        reads_state = gains is not None or pid is not None
+        (quat, w_last, frame, feed_forward, command, leg_ids), read, write, push = self._tick_io(reads_state)
         advance, substeps = self.sim.advance, self.substeps
         times = trajectory.t.tolist()
         rate = walk.engine_freq
@@ -570,6 +549,18 @@ class Physics3DBackend(Backend):
             return None
 
         return run
+
+    def _tick_io(self, reads_state: bool) -> tuple[tuple, Callable | None, Callable | None, Callable | None]:
+        """What one tick reads and sends around the control law, for both tick loops: the state
+        contract's arrays (quat, w_last, frame, feed_forward, command, leg_ids), the state read
+        (only when the law reads the base and the sim's arrays are not live views), the command
+        write (sims without live views) and the push schedule's tick (None: no pushes)."""
+        s = self.sim.state
+        arrays = (s.quat, s.w_last, s.frame, s.feed_forward, s.command, s.leg_ids)
+        read = None if (s.live or not reads_state) else self.sim.read_state
+        write = None if s.live else self.sim.write_command
+        push = None if self._push_ticks is None else self._push_tick
+        return arrays, read, write, push
 
     def _control_tick(self, targets: np.ndarray, trunk: np.ndarray, gains: np.ndarray | None, delay):
         """``control_tick``'s compiled code for these arrays and the sim's state contract."""

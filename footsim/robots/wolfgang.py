@@ -34,7 +34,7 @@ from footsim.robots.spec import (
     combined_inertial,
     stance_pose,
 )
-from footsim.walk.footsteps import Side, StepLimits
+from footsim.walk.footsteps import StepLimits
 
 # -- servos ------------------------------------------------------------------------------------
 # Per motor type: the URDF's effort [Nm] and velocity [rad/s] limits and the Bit-Bots' MuJoCo
@@ -134,6 +134,11 @@ WALK_READY_ARMS = {"LElbow": -0.9425, "RElbow": 0.9425}
 # The walk engine's neutral stance of walk=bitbots_sim: trunk height and foot distance [m].
 WALK_READY_TRUNK_HEIGHT, WALK_READY_FOOT_DISTANCE = 0.3948, 0.1799
 
+# The planar figures the 2D task uses too (FACTS: step limits, sole plate, torso footprint).
+STEP_LIMITS = StepLimits(0.156, 0.103, 0.764)
+FOOT_LENGTH, FOOT_WIDTH = 0.154, 0.106  # sole plate [m]
+TORSO_FOOTPRINT = (0.15, 0.15)  # planar collision box of the trunk [m]
+
 GREY, DARK, LIGHT = (0.55, 0.57, 0.58, 1.0), (0.28, 0.30, 0.32, 1.0), (0.75, 0.75, 0.72, 1.0)
 
 
@@ -167,10 +172,10 @@ def _segment(start, end, radius: float, self_collision: bool = False) -> Capsule
     z = axis / length
     x = np.cross([0.0, 1.0, 0.0], z) if abs(z[1]) < 0.9 else np.cross([1.0, 0.0, 0.0], z)
     x /= np.linalg.norm(x)
-    R = np.column_stack([x, np.cross(z, x), z])
-    pitch = math.asin(max(-1.0, min(1.0, -R[2, 0])))
-    rpy = (math.atan2(R[2, 1], R[2, 2]), pitch, math.atan2(R[1, 0], R[0, 0]))
-    return Capsule(radius, max(length - 2 * radius, 1e-3), Origin(tuple((a + b) / 2.0), rpy), self_collision)
+    pose = np.eye(4)
+    pose[:3, :3] = np.column_stack([x, np.cross(z, x), z])
+    pose[:3, 3] = (a + b) / 2.0
+    return Capsule(radius, max(length - 2 * radius, 1e-3), Origin.from_matrix(pose), self_collision)
 
 
 def _child_point(link: str) -> tuple[float, float, float]:
@@ -244,11 +249,11 @@ def wolfgang(torso_extra_mass: float = 0.0) -> RobotSpec:
         joints.append(Joint(name, parent, child, axis, lower, upper, effort, velocity, servo, Origin(xyz, rpy)))
     spec = RobotSpec(
         name="wolfgang",
-        step_limits=StepLimits(0.156, 0.103, 0.764),
-        foot_length=0.154,
-        foot_width=0.106,
+        step_limits=STEP_LIMITS,
+        foot_length=FOOT_LENGTH,
+        foot_width=FOOT_WIDTH,
         foot_thickness=PLATE_THICKNESS,
-        torso_footprint=(0.15, 0.15),
+        torso_footprint=TORSO_FOOTPRINT,
         base_link="torso",
         links=tuple(links),
         joints=tuple(joints),
@@ -259,4 +264,4 @@ def wolfgang(torso_extra_mass: float = 0.0) -> RobotSpec:
     return dataclasses.replace(spec, walk_ready=walk_ready)
 
 
-__all__ = ["SERVOS", "URDF_DYNAMICS", "wolfgang", "Side"]
+__all__ = ["SERVOS", "STEP_LIMITS", "URDF_DYNAMICS", "wolfgang"]

@@ -27,7 +27,8 @@ from footsim.robots.spec import (
     side_prefix,
     stance_pose,
 )
-from footsim.walk.footsteps import Side, StepLimits
+from footsim.robots.wolfgang import FOOT_LENGTH, FOOT_WIDTH, STEP_LIMITS, TORSO_FOOTPRINT
+from footsim.walk.footsteps import Side
 from footsim.walk.ik import LEG_JOINTS, LegGeometry
 
 # Joint limits of the real robot (left side, its own sign convention), FACTS.md.
@@ -320,11 +321,11 @@ def wolfgang_simplified() -> RobotSpec:
 
     return RobotSpec(
         name="wolfgang_simplified",
-        step_limits=StepLimits(0.156, 0.103, 0.764),
-        foot_length=0.154,
-        foot_width=0.106,
+        step_limits=STEP_LIMITS,  # the planar figures are the URDF robot's
+        foot_length=FOOT_LENGTH,
+        foot_width=FOOT_WIDTH,
         foot_thickness=SIM_FOOT_THICKNESS,
-        torso_footprint=(0.15, 0.15),
+        torso_footprint=TORSO_FOOTPRINT,
         base_link="torso",
         links=tuple(links),
         joints=tuple(joints),
