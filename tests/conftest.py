@@ -3,20 +3,12 @@ import subprocess
 from pathlib import Path
 
 import pytest
+from budgets import tiny_training
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 #: The tiny training budget of the runs ``tiny_runs`` trains (obstacle-free pymunk by default).
-TINY_RUN = [
-    "train.total_timesteps=128",
-    "train.n_envs=2",
-    "agent.n_steps=64",
-    "agent.batch_size=64",
-    "agent.n_epochs=1",
-    "train.progress_bar=false",
-    "train.tensorboard=false",
-    "eval.after_train=false",
-]
+TINY_RUN = tiny_training(128, "eval.after_train=false")
 
 
 @pytest.fixture(scope="session")

@@ -4,21 +4,13 @@ import subprocess
 import numpy as np
 import pytest
 import torch as th
+from budgets import tiny_training
 from stable_baselines3 import PPO
 
 from footsim.env import FootstepEnv
 from footsim.rl.beta import BetaActorCriticPolicy, BetaDistribution
 
-TINY = [
-    "train.total_timesteps=128",
-    "train.n_envs=2",
-    "agent.n_steps=64",
-    "agent.batch_size=64",
-    "agent.n_epochs=1",
-    "train.progress_bar=false",
-    "train.tensorboard=false",
-    "eval.after_train=false",
-]
+TINY = tiny_training(128, "eval.after_train=false")
 
 
 def test_log_prob_and_entropy_match_torch_beta_rescaled():

@@ -8,19 +8,11 @@ import zipfile
 from pathlib import Path
 
 import pytest
+from budgets import tiny_training
 
 pytestmark = pytest.mark.slow
 
-TINY = [
-    "train.total_timesteps=256",
-    "train.n_envs=2",
-    "agent.n_steps=64",
-    "agent.batch_size=64",
-    "agent.n_epochs=1",
-    "train.checkpoint_freq=128",
-    "train.progress_bar=false",
-    "eval.n_scenes=5",
-]
+TINY = tiny_training(256, "train.checkpoint_freq=128", "eval.n_scenes=5", tensorboard=True)
 
 
 def run(*args, cwd=None, check=True):

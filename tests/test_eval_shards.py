@@ -9,19 +9,11 @@ import subprocess
 from pathlib import Path
 
 import pytest
+from budgets import tiny_training
 
 from footsim.rl.evaluate import Shard
 
-TINY_TRAIN = [
-    "train.total_timesteps=256",
-    "train.n_envs=2",
-    "agent.n_steps=64",
-    "agent.batch_size=64",
-    "agent.n_epochs=1",
-    "train.progress_bar=false",
-    "train.tensorboard=false",
-    "eval.after_train=false",
-]
+TINY_TRAIN = tiny_training(256, "eval.after_train=false")
 
 
 def run(*args: str, check: bool = True) -> subprocess.CompletedProcess:

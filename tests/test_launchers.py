@@ -17,19 +17,9 @@ import time
 from pathlib import Path
 
 import pytest
+from budgets import tiny_training
 
-TINY = [
-    "train.total_timesteps=256",
-    "train.n_envs=2",
-    "agent.n_steps=64",
-    "agent.batch_size=64",
-    "agent.n_epochs=1",
-    "eval.n_scenes=3",
-    "train.progress_bar=false",
-    "train.tensorboard=false",
-    "eval.plot=false",
-    "seed=0,1",
-]
+TINY = tiny_training(256, "eval.n_scenes=3", "eval.plot=false", "seed=0,1")
 
 
 def _has(module: str) -> bool:

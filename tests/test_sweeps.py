@@ -9,23 +9,14 @@ import textwrap
 from pathlib import Path
 
 import pytest
+from budgets import tiny_training
 from hydra import compose, initialize_config_dir
 
 from footsim.config import conf_dir
 from footsim.rl import sweeps
 from footsim.tools import sweep_summary
 
-TINY = [
-    "train.total_timesteps=256",
-    "train.n_envs=2",
-    "agent.n_steps=64",
-    "agent.batch_size=64",
-    "agent.n_epochs=1",
-    "eval.n_scenes=3",
-    "train.progress_bar=false",
-    "train.tensorboard=false",
-    "eval.plot=false",
-]
+TINY = tiny_training(256, "eval.n_scenes=3", "eval.plot=false")
 
 
 def run(*args, cwd=None, timeout=300):
