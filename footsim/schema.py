@@ -14,6 +14,13 @@ serves both MuJoCo-engine backends, mujoco and dm_control), ``schema/robot``, ``
 ``schema/task``, ``schema/noise``, ``schema/randomization``, ``schema/agent``,
 ``schema/controller/{policy,velocity,footstep}``, ``schema/train`` and ``schema/eval`` (the
 top-level sections of ``footsim-train``), ``schema/eval_app`` (``footsim-eval``'s config).
+
+The groups ``experiment``, ``hpo`` and ``launcher`` are ``@package _global_``: a preset of theirs
+writes into the root of the app that composes it, so the app's root schema is theirs:
+``schema/train_app`` (``footsim-train``: ``experiment``, ``hpo/ppo_*``, ``launcher``) and
+``schema/walktune_app`` (``footsim-walktune``: ``hpo/walk*``; the ``launcher`` presets are
+``footsim-train``'s, since they also switch its progress bar off).  Their ``hydra.*``
+keys are typed by Hydra's own schemas of the launcher and sweeper plugins they select.
 """
 
 from __future__ import annotations
@@ -254,6 +261,52 @@ class EvalAppConfig:
 
 
 @dataclass
+class TrainAppConfig:
+    """``footsim-train``'s root (``conf/config.yaml``): the env's groups and ``agent`` (each typed by
+    its own group schema, so ``Any`` here), the ``train`` / ``eval`` sections and the run keys.  A
+    global-package preset (``+experiment=``, ``+hpo=``, ``+launcher=``) that writes a key outside
+    these fails naming the key."""
+
+    backend: Any = MISSING
+    robot: Any = MISSING
+    walk: Any = MISSING
+    task: Any = MISSING
+    noise: Any = MISSING
+    randomization: Any = MISSING
+    agent: Any = MISSING
+    train: TrainSection = MISSING
+    eval: EvalSection = MISSING
+    seed: int = MISSING
+    resume: Optional[str] = MISSING
+    init_from: Optional[str] = MISSING
+
+
+@dataclass
+class TuneSection:
+    """``footsim-walktune``'s ``tune`` section (read by :func:`footsim.calibration.walktune.run`)."""
+
+    command: str = MISSING
+    levels: List[float] = MISSING
+    warmup: int = MISSING
+    measure: int = MISSING
+    min_gain: float = MISSING
+    symmetric: bool = MISSING
+    stand_time: float = MISSING
+    seed: int = MISSING
+
+
+@dataclass
+class WalktuneAppConfig:
+    """``footsim-walktune``'s root (``conf/walktune.yaml``): the robot on a backend with a walk, and
+    the ``tune`` section; ``+hpo=walk*`` presets write into it."""
+
+    backend: Any = MISSING
+    robot: Any = MISSING
+    walk: Any = MISSING
+    tune: TuneSection = MISSING
+
+
+@dataclass
 class PolicyControllerConfig:
     name: str = MISSING
 
@@ -336,6 +389,8 @@ def register_schemas(controllers: bool = False) -> None:
                 "agent": AgentConfig,
                 "train": TrainSection,
                 "eval": EvalSection,
+                "train_app": TrainAppConfig,
+                "walktune_app": WalktuneAppConfig,
                 **_env_derived(),
             }
         )

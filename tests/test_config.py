@@ -132,3 +132,35 @@ def test_a_run_config_in_the_old_keys_evaluates_unchanged():
     }
     assert new.task.reward.stability.params.scale == 0.3
     assert fconf.upgrade_run_config(new) is new  # today's keys: unchanged
+
+
+@pytest.mark.parametrize(
+    "config_name, group, root",
+    [
+        ("config", "experiment", schema.TrainAppConfig),
+        ("config", "launcher", schema.TrainAppConfig),
+        ("config", "hpo", schema.TrainAppConfig),
+        ("walktune", "hpo", schema.WalktuneAppConfig),
+    ],
+)
+def test_every_global_preset_composes_against_its_apps_root_schema(config_name, group, root):
+    walk_tuning = config_name == "walktune"  # the hpo/walk* presets are footsim-walktune's, the others footsim-train's
+    names = [n for n in fconf.available(group) if group != "hpo" or n.startswith("walk") == walk_tuning]
+    assert names
+    for name in names:
+        cfg = fconf.compose(config_name, [f"+{group}={name}"])
+        assert OmegaConf.get_type(cfg) is root, (group, name)
+        written = {k for k in _raw(group, name) if k not in ("defaults", "hydra")}
+        assert written <= set(schema.schema_fields(root)), (group, name, written)
+
+
+def test_a_global_preset_writing_an_unknown_key_fails_naming_it(tmp_path):
+    (tmp_path / "experiment").mkdir()
+    (tmp_path / "experiment" / "typo.yaml").write_text("# @package _global_\ntrain:\n  total_timestep: 5\n")
+    with pytest.raises(ConfigCompositionException) as err:
+        fconf.compose("config", [f"hydra.searchpath=[file://{tmp_path}]", "+experiment=typo"])
+    assert "total_timestep" in str(err.value) + str(err.value.__cause__)
+    (tmp_path / "experiment" / "typo.yaml").write_text("# @package _global_\nsede: 3\n")
+    with pytest.raises(ConfigCompositionException) as err:
+        fconf.compose("config", [f"hydra.searchpath=[file://{tmp_path}]", "+experiment=typo"])
+    assert "sede" in str(err.value) + str(err.value.__cause__)
