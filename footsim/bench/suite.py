@@ -1,8 +1,11 @@
 """The benchmark table of ``footsim-bench``: each benchmark's name to a function returning rows of
 a markdown table (medians over ``repeats``), plus the machine line and the table format.
 
-Each benchmark runs in this process on one core.  Rates are given per CPU second of this process
-(robust on a busy machine) and per wall second.  Nothing here belongs in a unit test.
+Each benchmark runs in this process on one core, except the scaling ones (``ppo_mujoco``,
+``eval_shards_mujoco``: :mod:`footsim.bench.scaling`), which start the command lines as
+processes.  Rates are given per CPU second of this process
+(robust on a busy machine) and per wall second; the scaling ones in wall time only.  Nothing here
+belongs in a unit test.
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ from typing import Any
 from footsim.bench.env2d import bench_env2d
 from footsim.bench.physics3d import bench_backend
 from footsim.bench.planners import bench_planners
+from footsim.bench.scaling import bench_eval_shards, bench_ppo
 from footsim.bench.walk import bench_walk
 
 
@@ -52,6 +56,9 @@ BENCHMARKS: dict[str, Callable[..., list[dict]]] = {
     "dm_control": _bench_3d("dm_control"),
     "pybullet": _bench_3d("pybullet"),
     "planners": _planners,
+    # wall-clock scaling over processes (footsim.bench.scaling): one run each, `repeats` ignored
+    "ppo_mujoco": lambda repeats=1: bench_ppo("mujoco"),
+    "eval_shards_mujoco": lambda repeats=1: bench_eval_shards("mujoco"),
 }
 
 
