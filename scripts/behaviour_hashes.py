@@ -13,6 +13,10 @@ Each fingerprint is a SHA-256 over the exact float64 bytes of what the code comp
 All of them for ``footsim/FootstepNav-v1`` and, prefixed ``v0:``, for ``footsim/FootstepNav-v0``.
 
 ``check=FILE`` compares with a recorded file and exits 1 naming every fingerprint that differs.
+The bytes depend on the numerical libraries too (numpy's small-matrix kernels, numba, the
+simulators' builds differ in the last bits between versions), so ``out=`` also records the
+``environment`` (library versions) and ``check=`` names any version that differs: then record the
+base commit's fingerprints in this environment and compare with those.
 Only public surfaces are used, so the script runs unchanged before and after a refactoring.
 """
 
@@ -93,6 +97,20 @@ def fingerprints(backends: list[str]) -> dict[str, str]:
     return out
 
 
+def environment() -> dict[str, str]:
+    """The versions the fingerprints' last bits depend on."""
+    import importlib.metadata as md
+    import platform
+
+    versions = {"python": platform.python_version()}
+    for dist in ("numpy", "numba", "mujoco", "dm_control", "pybullet", "pymunk"):
+        try:
+            versions[dist] = md.version(dist)
+        except md.PackageNotFoundError:
+            versions[dist] = "absent"
+    return versions
+
+
 def main(argv: list[str]) -> int:
     opts = dict(arg.split("=", 1) for arg in argv)
     backends = opts.get("backends", "pymunk,mujoco,dm_control,pybullet").split(",")
@@ -100,7 +118,7 @@ def main(argv: list[str]) -> int:
     print(json.dumps(result, indent=2))
     if "out" in opts:
         with open(opts["out"], "w") as f:
-            json.dump(result, f, indent=2)
+            json.dump({**result, "environment": environment()}, f, indent=2)
             f.write("\n")
     if "check" in opts:
         with open(opts["check"]) as f:
@@ -108,6 +126,10 @@ def main(argv: list[str]) -> int:
         changed = sorted(k for k in result if k in expected and expected[k] != result[k])
         if changed:
             print(f"changed: {changed}", file=sys.stderr)
+            now, then = environment(), expected.get("environment", {})
+            differ = {k: (then.get(k, "unrecorded"), v) for k, v in now.items() if then.get(k) != v}
+            if differ:
+                print(f"the environment differs from the recording (recorded, now): {differ}", file=sys.stderr)
             return 1
         print("all fingerprints unchanged", file=sys.stderr)
     return 0
