@@ -171,3 +171,27 @@ def test_trunk_y_offset_is_unmirrored_as_in_the_bitbots_engine(spec):
     y0, y1 = symmetric.trunk_in_support[:, 1], biased.trunk_in_support[:, 1]
     assert y0[:n].mean() == pytest.approx(-y0[n:].mean(), abs=1e-9)
     assert y1[:n].mean() + y1[n:].mean() == pytest.approx(2 * offset, abs=1e-6)
+
+
+def test_joint_ref_reproduces_the_old_right_ankle_origin(spec):
+    """The docs' ``joint_ref={RAnkleRoll: -0.02247}`` is the pre-2026-03 URDF's RAnkleRoll origin
+    pitch 1.54833 instead of 1.5708 (FACTS, "Foot, sole and cleats"), still in the Bit-Bots' MuJoCo
+    model: the right sole by FK with that origin equals the sim's right sole with the option."""
+    from scipy.spatial.transform import Rotation
+
+    from footsim.robots.spec import Origin
+
+    sim = _sim(spec, joint_ref={"RAnkleRoll": -(1.5708 - 1.54833)})
+    q = dict(spec.walk_ready)
+    for name in sim.joint_names:
+        sim.data.qpos[sim.joint_qpos[name]] = q[name]
+    sim.data.qpos[:7] = (0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
+    right = _soles(sim.model, sim.data)[1]
+    joint = spec.joint("RAnkleRoll")
+    old_origin = Origin(joint.origin.xyz, (joint.origin.rpy[0], 1.54833, joint.origin.rpy[2])).matrix
+    turn = np.eye(4)
+    turn[:3, :3] = Rotation.from_rotvec(np.asarray(joint.axis, float) * q["RAnkleRoll"]).as_matrix()
+    expected = spec.link_transforms(q)["r_ankle"] @ old_origin @ turn @ spec.sole(Side.RIGHT)[1].matrix
+    np.testing.assert_allclose(right[:3], expected[:3, 3], atol=1e-9)
+    np.testing.assert_allclose(right[3:].reshape(3, 3), expected[:3, :3], atol=1e-9)
+    assert np.degrees(np.arcsin(expected[1, 2])) == pytest.approx(1.29, abs=0.01)  # FACTS: 1.29° roll
