@@ -92,6 +92,7 @@ class PybulletBackendConfig(Physics3DConfig):
     rolling_friction: float = MISSING
     position_gain_scale: float = MISSING
     velocity_gain: float = MISSING
+    motor_max_velocity: bool = MISSING
     solver_iterations: int = MISSING
     motor: str = MISSING
     servo_kp_scale: float = MISSING

@@ -195,3 +195,44 @@ def test_joint_ref_reproduces_the_old_right_ankle_origin(spec):
     np.testing.assert_allclose(right[:3], expected[:3, 3], atol=1e-9)
     np.testing.assert_allclose(right[3:].reshape(3, 3), expected[:3, :3], atol=1e-9)
     assert np.degrees(np.arcsin(expected[1, 2])) == pytest.approx(1.29, abs=0.01)  # FACTS: 1.29° roll
+
+
+@pytest.mark.parametrize("capped", [False, True])
+def test_pybullet_motor_max_velocity_caps_at_the_urdf_velocity(spec, capped):
+    """``backend.motor_max_velocity`` passes each joint's URDF velocity limit as the position motor's
+    maxVelocity, as the Bit-Bots' PyBullet setup does: a 1 rad target step of the right hip yaw then
+    moves the joint no faster than the MX-106's 5.76 rad/s (FACTS); uncapped it moves faster."""
+    pb = pytest.importorskip("pybullet")
+    from footsim.backends.bullet.sim import PybulletSim
+    from footsim.walk.ik import LEG_JOINT_NAMES
+
+    sim = PybulletSim(motor_max_velocity=capped, armature_scale=1.0, solver_iterations=10)
+    sim.build(spec, 1 / 240)
+    try:
+        q = dict(spec.walk_ready)
+        sim.reset_robot(np.array([0.0, 0.0, 0.5]), q)
+        leg = LEG_JOINT_NAMES.index("RHipYaw")
+        for i, name in enumerate(LEG_JOINT_NAMES):
+            sim.state.command[sim.state.leg_ids[i]] = q[name] + (1.0 if i == leg else 0.0)
+        sim.write_command()
+        fastest = 0.0
+        for _ in range(24):  # 0.1 s
+            sim.advance(1)
+            state = pb.getJointState(sim.robot_id, sim.leg_indices[leg], physicsClientId=sim.client)
+            fastest = max(fastest, abs(state[1]))
+        limit = spec.joint("RHipYaw").velocity
+        assert limit == 5.76
+        if capped:
+            assert fastest == pytest.approx(limit, rel=0.01)
+        else:
+            assert fastest > 1.2 * limit
+    finally:
+        sim.close()
+
+
+def test_pybullet_motor_max_velocity_must_be_a_bool():
+    pytest.importorskip("pybullet")
+    from footsim.backends.bullet.sim import PybulletSim
+
+    with pytest.raises(ValueError, match=r"backend\.motor_max_velocity must be true or false"):
+        PybulletSim(motor_max_velocity="yes")
