@@ -76,6 +76,8 @@ class MujocoBackendConfig(Physics3DConfig):
     servo_kp_scale: float = MISSING
     servo_damping_scale: float = MISSING
     servo_kv: float = MISSING
+    servo_force_limit: Optional[float] = MISSING
+    joint_ref: Dict[str, float] = MISSING
     contact_solref: Optional[List[float]] = MISSING
     obstacle_inflation: float = MISSING
     max_render_size: int = MISSING
@@ -90,6 +92,7 @@ class PybulletBackendConfig(Physics3DConfig):
     rolling_friction: float = MISSING
     position_gain_scale: float = MISSING
     velocity_gain: float = MISSING
+    motor_max_velocity: bool = MISSING
     solver_iterations: int = MISSING
     motor: str = MISSING
     servo_kp_scale: float = MISSING

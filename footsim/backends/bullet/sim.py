@@ -107,6 +107,7 @@ class PybulletSim(PhysicsSim):
         rolling_friction: float = 0.1,
         position_gain_scale: float = 1.0,
         velocity_gain: float = 1.0,
+        motor_max_velocity: bool = False,
         solver_iterations: int = 50,
         motor: str = "position",
         servo_kp_scale: float = 1.0,
@@ -158,6 +159,11 @@ class PybulletSim(PhysicsSim):
         self.rolling_friction = float(rolling_friction)
         self.position_gain_scale = float(position_gain_scale)
         self.velocity_gain = float(velocity_gain)
+        if not isinstance(motor_max_velocity, (bool, np.bool_)):
+            raise ValueError(f"backend.motor_max_velocity must be true or false, got {motor_max_velocity!r}")
+        # true: every leg motor's target velocity is capped at the joint's URDF velocity limit, as the
+        # Bit-Bots' PyBullet setup passes it (setJointMotorControl2 maxVelocity); false: no cap.
+        self.motor_max_velocity = bool(motor_max_velocity)
         self.solver_iterations = int(solver_iterations)
         self.obstacle_height = float(obstacle_height)
         self.self_collision = bool(self_collision)
@@ -320,6 +326,7 @@ class PybulletSim(PhysicsSim):
         self.leg_gains = [self._gain[n] for n in LEG_JOINT_NAMES]
         self._scales = {"kp": 1.0, "damping": 1.0, "torque": 1.0}
         self.leg_vgains = [self.velocity_gain] * len(LEG_JOINT_NAMES)
+        self.leg_max_velocities = [self.spec.joint(n).velocity for n in LEG_JOINT_NAMES]
         self.other_names = [n for n in self.joint_names if n not in LEG_JOINT_NAMES]
         # The state contract: Bullet's base state (position, quaternion x y z w, linear and angular
         # velocity of the inertial frame) read into one array; the leg commands sent from another.
@@ -508,6 +515,27 @@ class PybulletSim(PhysicsSim):
         """Position motors: the command as their targets.  Servo mode: nothing to send (the servo
         law turns the command into torques every physics step, ``servo_torques``)."""
         if self.motor == "servo":
+            return
+        if self.motor_max_velocity:  # the array call has no maxVelocity: one call per joint
+            for index, target, force, gain, vgain, cap in zip(
+                self.leg_indices,
+                self._command.tolist(),
+                self.leg_forces,
+                self.leg_gains,
+                self.leg_vgains,
+                self.leg_max_velocities,
+            ):
+                p.setJointMotorControl2(
+                    self.robot_id,
+                    index,
+                    p.POSITION_CONTROL,
+                    targetPosition=target,
+                    force=force,
+                    positionGain=gain,
+                    velocityGain=vgain,
+                    maxVelocity=cap,
+                    physicsClientId=self.client,
+                )
             return
         p.setJointMotorControlArray(
             self.robot_id,

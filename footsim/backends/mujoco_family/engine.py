@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -204,6 +204,8 @@ class MujocoModelOptions:
         servo_kp_scale: float = 1.0,
         servo_damping_scale: float = 1.0,
         servo_kv: float = 0.0,
+        servo_force_limit: float | None = None,
+        joint_ref: Mapping[str, float] | None = None,
         contact_solref: Sequence[float] | None = None,
         obstacle_inflation: float = 0.0,
         control_dt: float = 0.01,
@@ -235,6 +237,23 @@ class MujocoModelOptions:
         ServoFeedForward(servo_kv, np.ones(1), control_dt)  # validates servo_kv and control_dt
         self.servo_kv, self.control_dt = float(servo_kv), float(control_dt)
         self._feed_forward: ServoFeedForward | None = None  # when servo_kv > 0
+        if servo_force_limit is not None and not (
+            isinstance(servo_force_limit, (int, float)) and math.isfinite(servo_force_limit) and servo_force_limit > 0
+        ):
+            raise ValueError(f"backend.servo_force_limit must be > 0 [Nm] or null, got {servo_force_limit!r}")
+        # Every actuator's force range ±this [Nm] (the Bit-Bots' MuJoCo model: ±12); null: each
+        # servo's URDF effort limit (the built model's).
+        self.servo_force_limit = None if servo_force_limit is None else float(servo_force_limit)
+        # Per joint, MuJoCo's joint reference [rad] (the MJCF attribute ``ref``): the joint's body
+        # sits as the built model's does at angle q - ref, so the joint is offset by -ref from the
+        # angle it reports and is commanded to.  The Bit-Bots' MuJoCo model has ref 0.15 on RKnee
+        # and -0.15 on LKnee (both knees 0.15 rad more flexed).  Empty: none.
+        refs: dict[str, float] = {}
+        for name, value in dict(joint_ref or {}).items():
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and abs(value) < 1.0):
+                raise ValueError(f"backend.joint_ref.{name} must be a number of radians, |ref| < 1, got {value!r}")
+            refs[str(name)] = float(value)
+        self.joint_ref = refs
         self.max_render_size = int(max_render_size)
         if not isinstance(rigid_upper_body, (bool, np.bool_)):
             raise ValueError(f"backend.rigid_upper_body must be true or false, got {rigid_upper_body!r}")
@@ -281,6 +300,17 @@ class MujocoModelOptions:
             # makes it kp (q_t - q) + kv (qdot_t - qdot).
             legs = [name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, name) for name in LEG_JOINT_NAMES]
             m.actuator_biasprm[legs, 2] = -self.servo_kv
+        if self.servo_force_limit is not None:
+            m.actuator_forcerange[actuators] = (-self.servo_force_limit, self.servo_force_limit)
+        for name, ref in self.joint_ref.items():
+            # MuJoCo's hinge kinematics rotate by qpos - qpos0 and a joint's ref is its qpos0, so
+            # writing qpos0 on the compiled model is the MJCF attribute.
+            joint = name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)
+            if joint < 0 or name not in self.joint_names:
+                raise ValueError(
+                    f"backend.joint_ref: the model has no joint {name!r}; joints: {list(self.joint_names)}"
+                )
+            m.qpos0[m.jnt_qposadr[joint]] = ref
         if self.servo_damping_scale != 1.0:  # linear joint damping (the servos' back-EMF drag)
             for name in self.joint_names:
                 m.dof_damping[m.jnt_dofadr[name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)]] *= self.servo_damping_scale
