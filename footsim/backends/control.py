@@ -30,6 +30,7 @@ import math
 import numpy as np
 
 from footsim.compiled import compiled
+from footsim.walk.ik import legs_ik_tick
 
 # -- rotation and tilt -------------------------------------------------------------------------
 
@@ -175,6 +176,56 @@ def control_tick(
                 delay[:, j] = t
             t, delay[slot, j] = delay[slot, j], t
         send(t, j, feed_forward, command, leg_ids)
+
+
+@compiled
+def node_tick(
+    k: int,
+    every: bool,
+    updates: np.ndarray,
+    times: np.ndarray,
+    node: np.ndarray,
+    held: np.ndarray,
+    targets: np.ndarray,
+    trunk: np.ndarray,
+    pid: tuple[np.ndarray, ...] | None,
+    local: np.ndarray,
+    legs: tuple,
+    gains: np.ndarray | None,
+    quat: np.ndarray,
+    w_last: bool,
+    frame: np.ndarray | None,
+    delay: np.ndarray | None,
+    delay_slot: np.ndarray,
+    feed_forward: np.ndarray | None,
+    command: np.ndarray,
+    leg_ids: np.ndarray,
+) -> None:
+    """The walk node's control tick ``k`` (``Physics3DBackend._node_ticks``), then :func:`control_tick`.
+
+    An engine update is due when ``every`` or tick ``k``'s update index ``updates[k]`` differs
+    from the last one's, ``node[0]`` (``node`` (2,): that index and its engine time, updated in
+    place).  At an update the trunk PID (``pid``: :attr:`TrunkPID.arrays`, or None: off) turns
+    the planned − measured fused (roll, pitch) of the base (:func:`base_tilt`) over the engine
+    time since the last update (``times[k] − node[1]``) into the trunk's shift, and the leg IK of
+    the shifted trunk (``footsim.walk.ik.legs_ik_tick`` of the trajectory's support-frame poses
+    ``local``, with ``legs`` = ``QuinticWalk.ik_legs``) overwrites ``targets[k]``; the tick's
+    targets and trunk pose are then held (``held`` (18,)).  Between updates tick ``k`` takes the
+    held ones.  ``targets`` and ``trunk`` are the trajectory's copies (written in place); the other
+    arguments are :func:`control_tick`'s.
+    """
+    if every or updates[k] != node[0]:
+        if pid is not None:
+            roll, pitch = base_tilt(quat, w_last, frame)
+            dx, dy = trunk_pid_shift(pid, trunk[k, 3] - roll, trunk[k, 4] - pitch, times[k] - node[1])
+            legs_ik_tick(local, k, dx, dy, legs[0], legs[1], legs[2], legs[3], targets[k])
+        node[0], node[1] = updates[k], times[k]
+        held[:12] = targets[k]
+        held[12:] = trunk[k]
+    else:
+        targets[k] = held[:12]
+        trunk[k] = held[12:]
+    control_tick(targets, trunk, k, gains, quat, w_last, frame, delay, delay_slot, feed_forward, command, leg_ids)
 
 
 @compiled
@@ -334,29 +385,58 @@ class ServoFeedForward:
         self.previous[:] = targets
 
 
+@compiled
+def pid_update(gains: np.ndarray, state: np.ndarray, error: float, dt: float) -> float:
+    """One update of a PID controller (:class:`PID`): ``gains`` (5,) [p, i, d, i_min, i_max],
+    ``state`` (3,) [I, previous error, 1 if there is one] (updated in place).  The clamp compares
+    as Python's ``min(i_max, max(i_min, ·))`` does."""
+    raw = state[0] + gains[1] * error * dt
+    above = raw if raw > gains[3] else gains[3]
+    integral = above if above < gains[4] else gains[4]
+    derivative = 0.0 if state[2] == 0.0 or not dt > 0 else (error - state[1]) / dt
+    state[0], state[1], state[2] = integral, error, 1.0
+    return gains[0] * error + integral + gains[2] * derivative
+
+
+@compiled
+def trunk_pid_shift(
+    pid: tuple[np.ndarray, ...], roll_error: float, pitch_error: float, dt: float
+) -> tuple[float, float]:
+    """The trunk PID's (x, y) shift (:meth:`TrunkPID.shift`); ``pid`` = :attr:`TrunkPID.arrays`."""
+    return pid_update(pid[0], pid[1], pitch_error, dt), pid_update(pid[2], pid[3], roll_error, dt)
+
+
 class PID:
     """One PID controller on an error signal, updated at irregular intervals ``dt``.
 
     ``command = p · e + I + d · (e − e_previous) / dt`` with ``I`` the running sum of
     ``i · e · dt``, clamped to [``i_min``, ``i_max``] (both 0: no I term).  The first update after
-    :meth:`reset` has no previous error and no D term.
+    :meth:`reset` has no previous error and no D term.  The law is :func:`pid_update` (compiled,
+    so the 3D driver's tick runs it too); the gains and the state are its arrays.
     """
 
     def __init__(self, p: float = 0.0, i: float = 0.0, d: float = 0.0, i_min: float = 0.0, i_max: float = 0.0):
         self.p, self.i, self.d = float(p), float(i), float(d)
         self.i_min, self.i_max = float(i_min), float(i_max)
         self.active = any(g != 0.0 for g in (self.p, self.i, self.d))
-        self.reset()
+        #: [p, i, d, i_min, i_max] and [I, previous error, 1 if there is one]: :func:`pid_update`'s.
+        self.gains = np.array([self.p, self.i, self.d, self.i_min, self.i_max])
+        self.state = np.zeros(3)
 
     def reset(self) -> None:
-        self.integral = 0.0
-        self.previous: float | None = None
+        self.state[:] = 0.0
+
+    @property
+    def integral(self) -> float:
+        return float(self.state[0])
+
+    @property
+    def previous(self) -> float | None:
+        """The last error (None before the first update after a reset)."""
+        return float(self.state[1]) if self.state[2] != 0.0 else None
 
     def update(self, error: float, dt: float) -> float:
-        self.integral = min(self.i_max, max(self.i_min, self.integral + self.i * error * dt))
-        derivative = 0.0 if self.previous is None or not dt > 0 else (error - self.previous) / dt
-        self.previous = error
-        return self.p * error + self.integral + self.d * derivative
+        return pid_update(self.gains, self.state, float(error), float(dt))
 
 
 class TrunkPID:
@@ -373,6 +453,9 @@ class TrunkPID:
     def __init__(self, pitch: PID, roll: PID):
         self.pitch, self.roll = pitch, roll
         self.active = pitch.active or roll.active
+        #: The controllers' arrays (pitch gains, pitch state, roll gains, roll state), as
+        #: :func:`trunk_pid_shift` takes them.
+        self.arrays = (pitch.gains, pitch.state, roll.gains, roll.state)
 
     @classmethod
     def from_walk(cls, walk) -> TrunkPID:
@@ -390,4 +473,4 @@ class TrunkPID:
 
     def shift(self, roll_error: float, pitch_error: float, dt: float) -> tuple[float, float]:
         """The trunk's (x, y) shift [m] for these errors (planned − measured fused roll, pitch [rad])."""
-        return self.pitch.update(pitch_error, dt), self.roll.update(roll_error, dt)
+        return trunk_pid_shift(self.arrays, float(roll_error), float(pitch_error), float(dt))
