@@ -271,13 +271,12 @@ def _chain_ik(px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, P, out, k
     ay = py + r10 * P[9] + r11 * P[10] + r12 * P[11]
     az = pz + r20 * P[9] + r21 * P[10] + r22 * P[11]
     yaw = roll = knee = ankle_pitch = ankle_roll = 0.0
+    cy, sy, cr, sr = 1.0, 0.0, 1.0, 0.0  # cos and sin of yaw = roll = 0, exactly
     car, sar = 1.0, 0.0
     reachable = False
     for _ in range(_IK_PASSES):
         # Hip centre moved by the yaw (offset from the yaw axis) and by the lateral offset along
         # the rolled pitch axis: the point the leg plane's two-link problem starts from.
-        cy, sy = math.cos(yaw), math.sin(yaw)
-        cr, sr = math.cos(roll), math.sin(roll)
         u = P[3]
         v = P[4] + P[6] * cr
         w = P[5] + P[6] * sr
@@ -309,6 +308,8 @@ def _chain_ik(px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, P, out, k
         yaw, roll = new_yaw, new_roll
         if change < _IK_CONVERGED:
             break
+        cy, sy = math.cos(yaw), math.sin(yaw)
+        cr, sr = math.cos(roll), math.sin(roll)
     b = knee + ankle_pitch
     cb, sb = math.cos(b), math.sin(b)
     r2_rolled = r21 * sar + r22 * car
