@@ -230,6 +230,10 @@ class PhysicsSim(ABC):
         return None
 
 
+# The stepping half steps' state codes, as plain ints (numpy compares an IntEnum member slowly).
+_START_STEP, _WALKING = int(WalkState.START_STEP), int(WalkState.WALKING)
+
+
 def _layouts(*arrays: np.ndarray) -> tuple:
     """What numba's types of these arrays depend on (dtype, dimensions, layout, writability)."""
     return tuple((a.dtype, a.ndim, a.flags.c_contiguous, a.flags.f_contiguous, a.flags.writeable) for a in arrays)
@@ -524,13 +528,15 @@ class Physics3DBackend(Backend):
         arrays = pid.arrays if pid is not None else None
         legs = self.engine.ik_legs
         tick = self._node_tick(targets, trunk, updates, times, local, arrays, legs, gains, delay)
-        # The ticks after whose physics the phase reset reads the support foot's force.
-        checks: list[bool] | None = None
+        # Per tick, the phase reset's read after the physics: the flying foot's index in
+        # sole_forces() (left, right) in the contact window of a stepping half step, else -1.
+        watch: list[int] | None = None
         if reset:
-            phase, start = trajectory.phase, 0.5 * walk.phase_reset_min_phase
-            can_reset = (trajectory.state == WalkState.START_STEP) | (trajectory.state == WalkState.WALKING)
-            checks = (can_reset & (((start < phase) & (phase < 0.5)) | (phase > 0.5 + start))).tolist()
-        support_foot = np.where(trajectory.support, 1, 0).tolist()  # sole_forces() index: (left, right)
+            phase, start, state = trajectory.phase, 0.5 * walk.phase_reset_min_phase, trajectory.state
+            window = ((state == _START_STEP) | (state == _WALKING)) & (
+                ((start < phase) & (phase < 0.5)) | (phase > 0.5 + start)
+            )
+            watch = np.where(window, trajectory.support, -1).tolist()  # left support (1): the right foot flies
         threshold = walk.phase_reset_ground_min_pressure
 
         def run(k0: int, k1: int) -> int | None:
@@ -546,7 +552,7 @@ class Physics3DBackend(Backend):
                 if push is not None:
                     push()
                 advance(substeps)
-                if checks is not None and checks[k] and sole_forces()[support_foot[k]] > threshold:
+                if watch is not None and watch[k] >= 0 and sole_forces()[watch[k]] > threshold:
                     return k
             return None
 
