@@ -4,8 +4,11 @@ Per control tick the driver (``footsim.backends.physics3d``) runs :func:`control
 arrays of the sim's state contract (:class:`~footsim.backends.physics3d.SimState`): the fused
 roll/pitch of the base from its orientation quaternion, the trunk stabilizer's correction of the
 walk's joint targets, the control-latency line, the servo feed-forward and the write of the leg
-commands.  Every ``contact_check_every`` ticks :func:`state_ok` checks the same arrays (fatal
-warnings, finite state, speed and position bounds, right side up) and records the tilt.
+commands.  With the walk node's options (an engine update rate, the trunk PID, the phase reset)
+it runs :func:`node_tick` instead: the engine-update/hold rule, the trunk PID and the leg IK of
+the shifted trunk, then :func:`control_tick`, in one call.  Every ``contact_check_every`` ticks
+:func:`state_ok` checks the same arrays (fatal warnings, finite state, speed and position bounds,
+right side up) and records the tilt.
 
 The laws, each one compiled function:
 
@@ -17,6 +20,8 @@ The laws, each one compiled function:
   pitch))`` per leg joint (:func:`corrected`; gains from :class:`TrunkStabilizer`).
 * the servo feed-forward: ``command = target + gain · (target − previous target)``
   (:class:`ServoFeedForward`), the servo's D term on the tracking error.
+* the PID (:func:`pid_update`, for :class:`PID` and the trunk PID :class:`TrunkPID`):
+  ``p · e + I + d · (e − e_previous) / dt``, ``I`` the clamped sum of ``i · e · dt``.
 
 No fast-math (so no fused multiply-adds) and ``math.asin`` is the C library's, as in CPython: the
 kernels compute what the same expressions compute in Python, bit for bit.  Compiled code is
@@ -446,8 +451,9 @@ class TrunkPID:
     The error of each axis is planned − measured fused angle [rad] (the planned trunk orientation
     in the support frame has fused roll 0 and fused pitch = its pitch, as the engine's trunk never
     rolls); the pitch controller's output is the trunk's x shift, the roll controller's its y
-    shift [m].  The 3D driver turns the shift into joint targets by the engine's leg IK
-    (``QuinticWalk.trunk_shifted_targets``) at every engine update.  All gains 0 = off.
+    shift [m].  The 3D driver turns the shift into joint targets by the engine's leg IK of the
+    shifted trunk at every engine update (:func:`node_tick`; from Python:
+    ``QuinticWalk.trunk_shifted_targets``).  All gains 0 = off.
     """
 
     def __init__(self, pitch: PID, roll: PID):
