@@ -270,13 +270,13 @@ def _chain_ik(px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, P, out, k
     ax = px + r00 * P[9] + r01 * P[10] + r02 * P[11]
     ay = py + r10 * P[9] + r11 * P[10] + r12 * P[11]
     az = pz + r20 * P[9] + r21 * P[10] + r22 * P[11]
-    yaw = roll = knee = ankle_pitch = ankle_roll = 0.0
-    cy, sy, cr, sr = 1.0, 0.0, 1.0, 0.0  # cos and sin of yaw = roll = 0, exactly
-    car, sar = 1.0, 0.0
+    yaw = roll = pitch = knee = ankle_pitch = ankle_roll = 0.0
     reachable = False
     for _ in range(_IK_PASSES):
         # Hip centre moved by the yaw (offset from the yaw axis) and by the lateral offset along
         # the rolled pitch axis: the point the leg plane's two-link problem starts from.
+        cy, sy = math.cos(yaw), math.sin(yaw)
+        cr, sr = math.cos(roll), math.sin(roll)
         u = P[3]
         v = P[4] + P[6] * cr
         w = P[5] + P[6] * sr
@@ -296,26 +296,23 @@ def _chain_ik(px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, P, out, k
         # the same point is at (-L1 sin k, 0, L1 cos k + L2) before the ankle pitch turns it.
         ankle_pitch = math.atan2(-L1 * math.sin(knee), L1 * math.cos(knee) + L2) - math.atan2(vx, math.hypot(vy, vz))
         # Remaining hip rotation M = Rz(yaw) Rx(roll) Ry(pitch) = R Rx(-ankle_roll) Ry(-b),
-        # b = knee + ankle pitch; only the entries the ZXY decomposition needs are formed, and
-        # the pitch's (column 0 and 2 of row 2) only after the last pass.
+        # b = knee + ankle pitch; only the entries the ZXY decomposition needs are formed.
         car, sar = math.cos(ankle_roll), math.sin(ankle_roll)
+        b = knee + ankle_pitch
+        cb, sb = math.cos(b), math.sin(b)
         m01 = r01 * car - r02 * sar
         m11 = r11 * car - r12 * sar
         m21 = r21 * car - r22 * sar
+        r2_rolled = r21 * sar + r22 * car
+        m20 = r20 * cb + r2_rolled * sb
+        m22 = r2_rolled * cb - r20 * sb
         new_yaw = math.atan2(-m01, m11)
         new_roll = math.asin(min(max(m21, -1.0), 1.0))
+        pitch = math.atan2(-m20, m22)
         change = abs(new_yaw - yaw) + abs(new_roll - roll)
         yaw, roll = new_yaw, new_roll
         if change < _IK_CONVERGED:
             break
-        cy, sy = math.cos(yaw), math.sin(yaw)
-        cr, sr = math.cos(roll), math.sin(roll)
-    b = knee + ankle_pitch
-    cb, sb = math.cos(b), math.sin(b)
-    r2_rolled = r21 * sar + r22 * car
-    m20 = r20 * cb + r2_rolled * sb
-    m22 = r2_rolled * cb - r20 * sb
-    pitch = math.atan2(-m20, m22)
     chain = (yaw, roll, pitch, knee, ankle_pitch, ankle_roll)
     for j in range(6):
         out[k + j] = P[12 + j] * (chain[j] - P[18 + j])
