@@ -9,8 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from footsim.backends.control import PID, TrunkPID, node_tick, pid_update, trunk_pid_shift
+from footsim.backends.control import PID, TrunkPID, contact_watch, node_tick, pid_update, trunk_pid_shift
 from footsim.walk import DoubleStep, Footstep, FootstepGeometry, LegGeometry, QuinticWalk, StepLimits, WalkParams
+from footsim.walk.engine import WalkState
 from footsim.walk.ik import ik_legs, leg_fk, legs_ik, legs_ik_tick, rotation_from_rpy
 
 Rotation = pytest.importorskip("scipy.spatial.transform").Rotation
@@ -147,7 +148,7 @@ def test_node_tick_updates_shifts_and_holds_as_the_walk_node_does(every, with_pi
     n = len(trajectory)
     times = trajectory.t
     rate = 50.0  # every ~2.5 ticks of 8 ms
-    updates = np.arange(1.0, n + 1.0) if every else np.floor(times * rate + 1e-9)
+    updates = [k + 1 if every else math.floor(t * rate + 1e-9) for k, t in enumerate(times.tolist())]
     gains = (0.004, 0.3, 0.001, -0.002, 0.002)
     pid = TrunkPID(PID(*gains), PID(*gains)) if with_pid else None
     ref_pitch, ref_roll = PythonPID(*gains), PythonPID(*gains)
@@ -163,8 +164,8 @@ def test_node_tick_updates_shifts_and_holds_as_the_walk_node_does(every, with_pi
         quat = np.ascontiguousarray(np.roll(quat, 1))  # (w, x, y, z)
         arrays = pid.arrays if pid is not None else None
         node_tick(
-            k, every, updates, times, node, held, targets, trunk, arrays, trajectory.local_poses, engine.ik_legs,
-            None, quat, False, None, None, slot, None, command, ids,
+            k, 0.0 if every else rate, times, node, held, targets, trunk, arrays, trajectory.local_poses,
+            engine.ik_legs, None, quat, False, None, None, slot, None, command, ids,
         )  # fmt: skip
         # the reference: an update when the index moved on (or every tick), else the held targets
         if every or updates[k] != last_update:
@@ -184,5 +185,19 @@ def test_node_tick_updates_shifts_and_holds_as_the_walk_node_does(every, with_pi
         np.testing.assert_allclose(command, held_ref[:12], atol=1e-9, err_msg=str(k))
         np.testing.assert_allclose(trunk[k], held_ref[12:], atol=0, err_msg=str(k))
         np.testing.assert_allclose(node, [last_update, last_time], atol=0)
-    assert sent_updates == (n if every else len(set(updates.tolist())))
+    assert sent_updates == (n if every else len(set(updates)))
     assert every or sent_updates < n
+
+
+def test_contact_watch_is_the_phase_reset_window_of_the_stepping_half_steps():
+    engine, trajectory = _walk_trajectory(5)
+    start = 0.5 * 0.2
+    out = np.empty(len(trajectory), dtype=np.int64)
+    stepping = (int(WalkState.START_STEP), int(WalkState.WALKING))
+    contact_watch(trajectory.state, trajectory.phase, trajectory.support, stepping, start, out)
+    for k, (state, phase, left_support) in enumerate(
+        zip(trajectory.state.tolist(), trajectory.phase.tolist(), trajectory.support.tolist())
+    ):
+        in_window = state in stepping and (start < phase < 0.5 or phase > 0.5 + start)
+        assert out[k] == ((1 if left_support else 0) if in_window else -1), k
+    assert {-1, 0, 1} <= set(out.tolist())  # both feet fly in a double step, and both windows have gaps

@@ -186,8 +186,7 @@ def control_tick(
 @compiled
 def node_tick(
     k: int,
-    every: bool,
-    updates: np.ndarray,
+    rate: float,
     times: np.ndarray,
     node: np.ndarray,
     held: np.ndarray,
@@ -208,9 +207,10 @@ def node_tick(
 ) -> None:
     """The walk node's control tick ``k`` (``Physics3DBackend._node_ticks``), then :func:`control_tick`.
 
-    An engine update is due when ``every`` or tick ``k``'s update index ``updates[k]`` differs
-    from the last one's, ``node[0]`` (``node`` (2,): that index and its engine time, updated in
-    place).  At an update the trunk PID (``pid``: :attr:`TrunkPID.arrays`, or None: off) turns
+    An engine update is due when tick ``k``'s update index ``floor(times[k] · rate)`` (``times``:
+    the ticks' engine times) differs from the last one's, ``node[0]`` (``node`` (2,): that index
+    and its engine time, updated in place); ``rate`` 0 (no engine rate): at every tick (index
+    ``k + 1``).  At an update the trunk PID (``pid``: :attr:`TrunkPID.arrays`, or None: off) turns
     the planned − measured fused (roll, pitch) of the base (:func:`base_tilt`) over the engine
     time since the last update (``times[k] − node[1]``) into the trunk's shift, and the leg IK of
     the shifted trunk (``footsim.walk.ik.legs_ik_tick`` of the trajectory's support-frame poses
@@ -219,18 +219,36 @@ def node_tick(
     held ones.  ``targets`` and ``trunk`` are the trajectory's copies (written in place); the other
     arguments are :func:`control_tick`'s.
     """
-    if every or updates[k] != node[0]:
+    every = rate == 0.0
+    update = float(k + 1) if every else float(math.floor(times[k] * rate + 1e-9))
+    if every or update != node[0]:
         if pid is not None:
             roll, pitch = base_tilt(quat, w_last, frame)
             dx, dy = trunk_pid_shift(pid, trunk[k, 3] - roll, trunk[k, 4] - pitch, times[k] - node[1])
             legs_ik_tick(local, k, dx, dy, legs[0], legs[1], legs[2], legs[3], targets[k])
-        node[0], node[1] = updates[k], times[k]
+        node[0], node[1] = update, times[k]
         held[:12] = targets[k]
         held[12:] = trunk[k]
     else:
         targets[k] = held[:12]
         trunk[k] = held[12:]
     control_tick(targets, trunk, k, gains, quat, w_last, frame, delay, delay_slot, feed_forward, command, leg_ids)
+
+
+@compiled
+def contact_watch(
+    state: np.ndarray, phase: np.ndarray, support: np.ndarray, stepping: tuple[int, int], start: float, out: np.ndarray
+) -> None:
+    """The phase reset's reads of a trajectory, into ``out`` (n,): the flying foot's index in
+    ``sole_forces()`` (0 left, 1 right; ``support`` True = left support) at the ticks of a
+    stepping half step (``state`` one of ``stepping``) whose ``phase`` lies in the contact
+    window (``start`` < phase < 0.5 or phase > 0.5 + ``start``), else -1."""
+    for k in range(state.shape[0]):
+        p = phase[k]
+        if (state[k] == stepping[0] or state[k] == stepping[1]) and (start < p < 0.5 or p > 0.5 + start):
+            out[k] = 1 if support[k] else 0
+        else:
+            out[k] = -1
 
 
 @compiled

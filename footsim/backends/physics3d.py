@@ -29,6 +29,7 @@ from footsim.backends.control import (
     TrunkPID,
     TrunkStabilizer,
     all_finite,
+    contact_watch,
     control_tick,
     fused_roll_pitch,
     node_tick,
@@ -230,13 +231,13 @@ class PhysicsSim(ABC):
         return None
 
 
-# The stepping half steps' state codes, as plain ints (numpy compares an IntEnum member slowly).
-_START_STEP, _WALKING = int(WalkState.START_STEP), int(WalkState.WALKING)
+# The stepping half steps' state codes (the phase reset's), as plain ints for the compiled code.
+_STEPPING = (int(WalkState.START_STEP), int(WalkState.WALKING))
 
 
 def _layouts(*arrays: np.ndarray) -> tuple:
     """What numba's types of these arrays depend on (dtype, dimensions, layout, writability)."""
-    return tuple((a.dtype, a.ndim, a.flags.c_contiguous, a.flags.f_contiguous, a.flags.writeable) for a in arrays)
+    return tuple((a.dtype, a.ndim, a.flags.num) for a in arrays)  # flags.num: every flag as bits
 
 
 class Physics3DBackend(Backend):
@@ -521,22 +522,20 @@ class Physics3DBackend(Backend):
         (quat, w_last, frame, feed_forward, command, leg_ids), read, write, push = self._tick_io(reads_state)
         advance, substeps, sole_forces = self.sim.advance, self.substeps, self.sim.sole_forces
         times = trajectory.t
-        rate = walk.engine_freq
-        every = rate is None
-        updates = np.floor(times * rate + 1e-9) if rate is not None else np.arange(1.0, len(times) + 1.0)
+        rate = 0.0 if walk.engine_freq is None else float(walk.engine_freq)  # node_tick: 0 = every tick
         node, held, local = self._node, self._held, trajectory.local_poses
         arrays = pid.arrays if pid is not None else None
         legs = self.engine.ik_legs
-        tick = self._node_tick(targets, trunk, updates, times, local, arrays, legs, gains, delay)
-        # Per tick, the phase reset's read after the physics: the flying foot's index in
-        # sole_forces() (left, right) in the contact window of a stepping half step, else -1.
+        tick = self._node_tick(targets, trunk, times, local, arrays, legs, gains, delay)
+        # Per tick, the phase reset's read after the physics (control.contact_watch): the flying
+        # foot's index in sole_forces() in the contact window, else -1.
         watch: list[int] | None = None
         if reset:
-            phase, start, state = trajectory.phase, 0.5 * walk.phase_reset_min_phase, trajectory.state
-            window = ((state == _START_STEP) | (state == _WALKING)) & (
-                ((start < phase) & (phase < 0.5)) | (phase > 0.5 + start)
+            out = np.empty(len(times), dtype=np.int64)
+            contact_watch(
+                trajectory.state, trajectory.phase, trajectory.support, _STEPPING, 0.5 * walk.phase_reset_min_phase, out
             )
-            watch = np.where(window, trajectory.support, -1).tolist()  # left support (1): the right foot flies
+            watch = out.tolist()
         threshold = walk.phase_reset_ground_min_pressure
 
         def run(k0: int, k1: int) -> int | None:
@@ -544,7 +543,7 @@ class Physics3DBackend(Backend):
                 if read is not None:
                     read()
                 tick(
-                    k, every, updates, times, node, held, targets, trunk, arrays, local, legs,
+                    k, rate, times, node, held, targets, trunk, arrays, local, legs,
                     gains, quat, w_last, frame, delay, slot, feed_forward, command, leg_ids,
                 )  # fmt: skip
                 if write is not None:
@@ -577,13 +576,12 @@ class Physics3DBackend(Backend):
         args = (targets, trunk, 0, gains, *self._law_args(delay))
         return self._typed(control_tick, key, args)
 
-    def _node_tick(self, targets, trunk, updates, times, local, pid, legs, gains, delay):
+    def _node_tick(self, targets, trunk, times, local, pid, legs, gains, delay):
         """``node_tick``'s compiled code for these arrays, the trunk PID's (None: off), the engine's
         legs and the sim's state contract."""
         s = self.sim.state
-        arrays = (targets, trunk, updates, times, local)
-        key = (node_tick, s, pid is None, gains is None, delay is None, _layouts(*arrays))
-        args = (0, True, updates, times, self._node, self._held, targets, trunk, pid, local, legs, gains)
+        key = (node_tick, s, pid is None, gains is None, delay is None, _layouts(targets, trunk, times, local))
+        args = (0, 0.0, times, self._node, self._held, targets, trunk, pid, local, legs, gains)
         return self._typed(node_tick, key, args + self._law_args(delay))
 
     def _law_args(self, delay) -> tuple:
