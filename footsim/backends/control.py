@@ -4,8 +4,11 @@ Per control tick the driver (``footsim.backends.physics3d``) runs :func:`control
 arrays of the sim's state contract (:class:`~footsim.backends.physics3d.SimState`): the fused
 roll/pitch of the base from its orientation quaternion, the trunk stabilizer's correction of the
 walk's joint targets, the control-latency line, the servo feed-forward and the write of the leg
-commands.  Every ``contact_check_every`` ticks :func:`state_ok` checks the same arrays (fatal
-warnings, finite state, speed and position bounds, right side up) and records the tilt.
+commands.  With the walk node's options (an engine update rate, the trunk PID, the phase reset)
+it runs :func:`node_tick` instead: the engine-update/hold rule, the trunk PID and the leg IK of
+the shifted trunk, then :func:`control_tick`, in one call.  Every ``contact_check_every`` ticks
+:func:`state_ok` checks the same arrays (fatal warnings, finite state, speed and position bounds,
+right side up) and records the tilt.
 
 The laws, each one compiled function:
 
@@ -17,6 +20,8 @@ The laws, each one compiled function:
   pitch))`` per leg joint (:func:`corrected`; gains from :class:`TrunkStabilizer`).
 * the servo feed-forward: ``command = target + gain · (target − previous target)``
   (:class:`ServoFeedForward`), the servo's D term on the tracking error.
+* the PID (:func:`pid_update`, for :class:`PID` and the trunk PID :class:`TrunkPID`):
+  ``p · e + I + d · (e − e_previous) / dt``, ``I`` the clamped sum of ``i · e · dt``.
 
 No fast-math (so no fused multiply-adds) and ``math.asin`` is the C library's, as in CPython: the
 kernels compute what the same expressions compute in Python, bit for bit.  Compiled code is
@@ -30,6 +35,7 @@ import math
 import numpy as np
 
 from footsim.compiled import compiled
+from footsim.walk.ik import legs_ik_tick
 
 # -- rotation and tilt -------------------------------------------------------------------------
 
@@ -175,6 +181,74 @@ def control_tick(
                 delay[:, j] = t
             t, delay[slot, j] = delay[slot, j], t
         send(t, j, feed_forward, command, leg_ids)
+
+
+@compiled
+def node_tick(
+    k: int,
+    rate: float,
+    times: np.ndarray,
+    node: np.ndarray,
+    held: np.ndarray,
+    targets: np.ndarray,
+    trunk: np.ndarray,
+    pid: tuple[np.ndarray, ...] | None,
+    local: np.ndarray,
+    legs: tuple,
+    gains: np.ndarray | None,
+    quat: np.ndarray,
+    w_last: bool,
+    frame: np.ndarray | None,
+    delay: np.ndarray | None,
+    delay_slot: np.ndarray,
+    feed_forward: np.ndarray | None,
+    command: np.ndarray,
+    leg_ids: np.ndarray,
+) -> None:
+    """The walk node's control tick ``k`` (``Physics3DBackend._node_ticks``), then :func:`control_tick`.
+
+    An engine update is due when tick ``k``'s update index ``floor(times[k] · rate)`` (``times``:
+    the ticks' engine times) differs from the last one's, ``node[0]`` (``node`` (2,): that index
+    and its engine time, updated in place); ``rate`` 0 (no engine rate): at every tick (index
+    ``k + 1``).  At an update the trunk PID (``pid``: :attr:`TrunkPID.arrays`, or None: off) turns
+    the planned − measured fused (roll, pitch) of the base (:func:`base_tilt`) over the engine
+    time since the last update (``times[k] − node[1]``) into the trunk's shift, and the leg IK of
+    the shifted trunk (``footsim.walk.ik.legs_ik_tick`` of the trajectory's support-frame poses
+    ``local``, with ``legs`` = ``QuinticWalk.ik_legs``) overwrites ``targets[k]``; the tick's
+    targets and trunk pose are then held (``held`` (18,)).  Between updates tick ``k`` takes the
+    held ones.  ``targets`` and ``trunk`` are the trajectory's copies (written in place); the other
+    arguments are :func:`control_tick`'s.
+    """
+    every = rate == 0.0
+    update = float(k + 1) if every else float(math.floor(times[k] * rate + 1e-9))
+    if every or update != node[0]:
+        if pid is not None:
+            roll, pitch = base_tilt(quat, w_last, frame)
+            dx, dy = trunk_pid_shift(pid, trunk[k, 3] - roll, trunk[k, 4] - pitch, times[k] - node[1])
+            legs_ik_tick(local, k, dx, dy, legs[0], legs[1], legs[2], legs[3], targets[k])
+        node[0], node[1] = update, times[k]
+        held[:12] = targets[k]
+        held[12:] = trunk[k]
+    else:
+        targets[k] = held[:12]
+        trunk[k] = held[12:]
+    control_tick(targets, trunk, k, gains, quat, w_last, frame, delay, delay_slot, feed_forward, command, leg_ids)
+
+
+@compiled
+def contact_watch(
+    state: np.ndarray, phase: np.ndarray, support: np.ndarray, stepping: tuple[int, int], start: float, out: np.ndarray
+) -> None:
+    """The phase reset's reads of a trajectory, into ``out`` (n,): the flying foot's index in
+    ``sole_forces()`` (0 left, 1 right; ``support`` True = left support) at the ticks of a
+    stepping half step (``state`` one of ``stepping``) whose ``phase`` lies in the contact
+    window (``start`` < phase < 0.5 or phase > 0.5 + ``start``), else -1."""
+    for k in range(state.shape[0]):
+        p = phase[k]
+        if (state[k] == stepping[0] or state[k] == stepping[1]) and (start < p < 0.5 or p > 0.5 + start):
+            out[k] = 1 if support[k] else 0
+        else:
+            out[k] = -1
 
 
 @compiled
@@ -334,29 +408,58 @@ class ServoFeedForward:
         self.previous[:] = targets
 
 
+@compiled
+def pid_update(gains: np.ndarray, state: np.ndarray, error: float, dt: float) -> float:
+    """One update of a PID controller (:class:`PID`): ``gains`` (5,) [p, i, d, i_min, i_max],
+    ``state`` (3,) [I, previous error, 1 if there is one] (updated in place).  The clamp compares
+    as Python's ``min(i_max, max(i_min, ·))`` does."""
+    raw = state[0] + gains[1] * error * dt
+    above = raw if raw > gains[3] else gains[3]
+    integral = above if above < gains[4] else gains[4]
+    derivative = 0.0 if state[2] == 0.0 or not dt > 0 else (error - state[1]) / dt
+    state[0], state[1], state[2] = integral, error, 1.0
+    return gains[0] * error + integral + gains[2] * derivative
+
+
+@compiled
+def trunk_pid_shift(
+    pid: tuple[np.ndarray, ...], roll_error: float, pitch_error: float, dt: float
+) -> tuple[float, float]:
+    """The trunk PID's (x, y) shift (:meth:`TrunkPID.shift`); ``pid`` = :attr:`TrunkPID.arrays`."""
+    return pid_update(pid[0], pid[1], pitch_error, dt), pid_update(pid[2], pid[3], roll_error, dt)
+
+
 class PID:
     """One PID controller on an error signal, updated at irregular intervals ``dt``.
 
     ``command = p · e + I + d · (e − e_previous) / dt`` with ``I`` the running sum of
     ``i · e · dt``, clamped to [``i_min``, ``i_max``] (both 0: no I term).  The first update after
-    :meth:`reset` has no previous error and no D term.
+    :meth:`reset` has no previous error and no D term.  The law is :func:`pid_update` (compiled,
+    so the 3D driver's tick runs it too); the gains and the state are its arrays.
     """
 
     def __init__(self, p: float = 0.0, i: float = 0.0, d: float = 0.0, i_min: float = 0.0, i_max: float = 0.0):
         self.p, self.i, self.d = float(p), float(i), float(d)
         self.i_min, self.i_max = float(i_min), float(i_max)
         self.active = any(g != 0.0 for g in (self.p, self.i, self.d))
-        self.reset()
+        #: [p, i, d, i_min, i_max] and [I, previous error, 1 if there is one]: :func:`pid_update`'s.
+        self.gains = np.array([self.p, self.i, self.d, self.i_min, self.i_max])
+        self.state = np.zeros(3)
 
     def reset(self) -> None:
-        self.integral = 0.0
-        self.previous: float | None = None
+        self.state[:] = 0.0
+
+    @property
+    def integral(self) -> float:
+        return float(self.state[0])
+
+    @property
+    def previous(self) -> float | None:
+        """The last error (None before the first update after a reset)."""
+        return float(self.state[1]) if self.state[2] != 0.0 else None
 
     def update(self, error: float, dt: float) -> float:
-        self.integral = min(self.i_max, max(self.i_min, self.integral + self.i * error * dt))
-        derivative = 0.0 if self.previous is None or not dt > 0 else (error - self.previous) / dt
-        self.previous = error
-        return self.p * error + self.integral + self.d * derivative
+        return pid_update(self.gains, self.state, float(error), float(dt))
 
 
 class TrunkPID:
@@ -366,13 +469,17 @@ class TrunkPID:
     The error of each axis is planned − measured fused angle [rad] (the planned trunk orientation
     in the support frame has fused roll 0 and fused pitch = its pitch, as the engine's trunk never
     rolls); the pitch controller's output is the trunk's x shift, the roll controller's its y
-    shift [m].  The 3D driver turns the shift into joint targets by the engine's leg IK
-    (``QuinticWalk.trunk_shifted_targets``) at every engine update.  All gains 0 = off.
+    shift [m].  The 3D driver turns the shift into joint targets by the engine's leg IK of the
+    shifted trunk at every engine update (:func:`node_tick`; from Python:
+    ``QuinticWalk.trunk_shifted_targets``).  All gains 0 = off.
     """
 
     def __init__(self, pitch: PID, roll: PID):
         self.pitch, self.roll = pitch, roll
         self.active = pitch.active or roll.active
+        #: The controllers' arrays (pitch gains, pitch state, roll gains, roll state), as
+        #: :func:`trunk_pid_shift` takes them.
+        self.arrays = (pitch.gains, pitch.state, roll.gains, roll.state)
 
     @classmethod
     def from_walk(cls, walk) -> TrunkPID:
@@ -390,4 +497,4 @@ class TrunkPID:
 
     def shift(self, roll_error: float, pitch_error: float, dt: float) -> tuple[float, float]:
         """The trunk's (x, y) shift [m] for these errors (planned − measured fused roll, pitch [rad])."""
-        return self.pitch.update(pitch_error, dt), self.roll.update(roll_error, dt)
+        return trunk_pid_shift(self.arrays, float(roll_error), float(pitch_error), float(dt))

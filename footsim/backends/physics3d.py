@@ -29,9 +29,10 @@ from footsim.backends.control import (
     TrunkPID,
     TrunkStabilizer,
     all_finite,
-    base_tilt,
+    contact_watch,
     control_tick,
     fused_roll_pitch,
+    node_tick,
     state_ok,
     write_targets,
 )
@@ -230,6 +231,15 @@ class PhysicsSim(ABC):
         return None
 
 
+# The stepping half steps' state codes (the phase reset's), as plain ints for the compiled code.
+_STEPPING = (int(WalkState.START_STEP), int(WalkState.WALKING))
+
+
+def _layouts(*arrays: np.ndarray) -> tuple:
+    """What numba's types of these arrays depend on (dtype, dimensions, layout, writability)."""
+    return tuple((a.dtype, a.ndim, a.flags.num) for a in arrays)  # flags.num: every flag as bits
+
+
 class Physics3DBackend(Backend):
     """A ``Backend`` that walks the robot with the quintic engine on a ``PhysicsSim``.
 
@@ -360,9 +370,8 @@ class Physics3DBackend(Backend):
         self._tilt_buffer = np.zeros(2)  # state_ok writes the tilt here
         # The walk node's options (WalkParams): the trunk PID, the engine update rate, the phase reset.
         self.trunk_pid = TrunkPID.from_walk(walk)
-        self._engine_update = 0  # index of the last engine update (engine time × engine_freq)
-        self._engine_time = 0.0  # engine time of the last engine update [s]
-        self._held = (np.zeros(12), np.zeros(6))  # the targets and trunk pose of the last engine update
+        self._node = np.zeros(2)  # the last engine update: its index (engine time × engine_freq), engine time [s]
+        self._held = np.zeros(18)  # the targets (12) and trunk pose (6) of the last engine update
 
     # -- randomization --------------------------------------------------------------------
     @property
@@ -509,43 +518,41 @@ class Physics3DBackend(Backend):
         walk = self.walk_current
         targets, trunk = trajectory.joint_targets.copy(), trajectory.trunk_in_support.copy()
         delay, slot = self._delay_line(), self._delay_slot
-        tick = self._control_tick(targets, trunk, gains, delay)
         reads_state = gains is not None or pid is not None
         (quat, w_last, frame, feed_forward, command, leg_ids), read, write, push = self._tick_io(reads_state)
-        advance, substeps = self.sim.advance, self.substeps
-        times = trajectory.t.tolist()
-        rate = walk.engine_freq
-        updates = [math.floor(t * rate + 1e-9) for t in times] if rate is not None else list(range(1, len(times) + 1))
-        contact_from = 0.5 * walk.phase_reset_min_phase
-        can_reset = (trajectory.state == WalkState.START_STEP) | (trajectory.state == WalkState.WALKING)
-        phases, left_support = trajectory.phase.tolist(), trajectory.support.tolist()
+        advance, substeps, sole_forces = self.sim.advance, self.substeps, self.sim.sole_forces
+        times = trajectory.t
+        rate = 0.0 if walk.engine_freq is None else float(walk.engine_freq)  # node_tick: 0 = every tick
+        node, held, local = self._node, self._held, trajectory.local_poses
+        arrays = pid.arrays if pid is not None else None
+        legs = self.engine.ik_legs
+        tick = self._node_tick(targets, trunk, times, local, arrays, legs, gains, delay)
+        # Per tick, the phase reset's read after the physics (control.contact_watch): the flying
+        # foot's index in sole_forces() in the contact window, else -1.
+        watch: list[int] | None = None
+        if reset:
+            out = np.empty(len(times), dtype=np.int64)
+            contact_watch(
+                trajectory.state, trajectory.phase, trajectory.support, _STEPPING, 0.5 * walk.phase_reset_min_phase, out
+            )
+            watch = out.tolist()
         threshold = walk.phase_reset_ground_min_pressure
 
         def run(k0: int, k1: int) -> int | None:
             for k in range(k0, k1):
                 if read is not None:
                     read()
-                update = updates[k]
-                if rate is None or update != self._engine_update:
-                    if pid is not None:
-                        roll, pitch = base_tilt(quat, w_last, frame)
-                        dx, dy = pid.shift(trunk[k, 3] - roll, trunk[k, 4] - pitch, times[k] - self._engine_time)
-                        targets[k] = self.engine.trunk_shifted_targets(trajectory, k, dx, dy)
-                    self._engine_update, self._engine_time = update, times[k]
-                    self._held = (targets[k], trunk[k])
-                else:
-                    targets[k], trunk[k] = self._held
-                tick(targets, trunk, k, gains, quat, w_last, frame, delay, slot, feed_forward, command, leg_ids)
+                tick(
+                    k, rate, times, node, held, targets, trunk, arrays, local, legs,
+                    gains, quat, w_last, frame, delay, slot, feed_forward, command, leg_ids,
+                )  # fmt: skip
                 if write is not None:
                     write()
                 if push is not None:
                     push()
                 advance(substeps)
-                if reset and can_reset[k]:
-                    phase = phases[k]
-                    if contact_from < phase < 0.5 or phase > 0.5 + contact_from:
-                        if self.sim.sole_forces()[1 if left_support[k] else 0] > threshold:
-                            return k
+                if watch is not None and watch[k] >= 0 and sole_forces()[watch[k]] > threshold:
+                    return k
             return None
 
         return run
@@ -565,25 +572,23 @@ class Physics3DBackend(Backend):
     def _control_tick(self, targets: np.ndarray, trunk: np.ndarray, gains: np.ndarray | None, delay):
         """``control_tick``'s compiled code for these arrays and the sim's state contract."""
         s = self.sim.state
-        layouts = tuple(
-            (a.dtype, a.ndim, a.flags.c_contiguous, a.flags.f_contiguous, a.flags.writeable) for a in (targets, trunk)
-        )
-        key = (control_tick, s, gains is None, delay is None, layouts)  # what decides the compiled types
-        args = (
-            targets,
-            trunk,
-            0,
-            gains,
-            s.quat,
-            s.w_last,
-            s.frame,
-            delay,
-            self._delay_slot,
-            s.feed_forward,
-            s.command,
-            s.leg_ids,
-        )
+        key = (control_tick, s, gains is None, delay is None, _layouts(targets, trunk))  # what decides the types
+        args = (targets, trunk, 0, gains, *self._law_args(delay))
         return self._typed(control_tick, key, args)
+
+    def _node_tick(self, targets, trunk, times, local, pid, legs, gains, delay):
+        """``node_tick``'s compiled code for these arrays, the trunk PID's (None: off), the engine's
+        legs and the sim's state contract."""
+        s = self.sim.state
+        key = (node_tick, s, pid is None, gains is None, delay is None, _layouts(targets, trunk, times, local))
+        args = (0, 0.0, times, self._node, self._held, targets, trunk, pid, local, legs, gains)
+        return self._typed(node_tick, key, args + self._law_args(delay))
+
+    def _law_args(self, delay) -> tuple:
+        """``control_tick``'s arguments after (targets, trunk, k, gains): the state contract's base
+        orientation, the latency line, the feed-forward, the command and its joint ids."""
+        s = self.sim.state
+        return (s.quat, s.w_last, s.frame, delay, self._delay_slot, s.feed_forward, s.command, s.leg_ids)
 
     def _typed(self, kernel, key: tuple, args: tuple):
         """``kernel``'s compiled code for the types of ``args`` (``footsim.compiled.typed_entry``), kept
@@ -738,10 +743,10 @@ class Physics3DBackend(Backend):
     def _restart_walk_node(self, standing: np.ndarray) -> None:
         """The walk node's state at reset: engine update 0 at engine time 0 = the standing pose."""
         self.trunk_pid.reset()
-        self._engine_update, self._engine_time = 0, 0.0
-        pose = np.zeros(6)
-        pose[2], pose[4] = self.walk_current.trunk_height, self.walk_current.trunk_pitch
-        self._held = (np.array(standing, dtype=float), pose)
+        self._node[:] = 0.0
+        self._held[:] = 0.0
+        self._held[:12] = standing
+        self._held[12 + 2], self._held[12 + 4] = self.walk_current.trunk_height, self.walk_current.trunk_pitch
 
     def hold(self, seconds: float) -> None:
         """Keep the current joint targets for a while (used by the walk checks)."""

@@ -55,7 +55,7 @@ import numpy as np
 from footsim.geometry import Pose2D, mean_pose, wrap_angles
 from footsim.walk import kernels
 from footsim.walk.footsteps import DoubleStep, FeetState, Footstep, FootstepGeometry, Side
-from footsim.walk.ik import LEG_JOINT_NAMES, LegGeometry, legs_ik
+from footsim.walk.ik import LEG_JOINT_NAMES, LegGeometry, ik_legs, legs_ik, legs_ik_tick
 from footsim.walk.params import WalkParams
 from footsim.walk.spline import knots_state, sample_positions
 
@@ -511,11 +511,14 @@ class QuinticWalk:
     def trunk_shifted_targets(self, trajectory: WalkTrajectory, k: int, dx: float, dy: float) -> np.ndarray:
         """Tick ``k``'s 12 joint targets with the trunk moved by (``dx``, ``dy``) [m] in the support
         sole's frame (the trunk PID's correction); the IK clamps them to the joint limits."""
-        local = trajectory.local_poses[:, :, k : k + 1].copy()
-        local[2, X] += dx
-        local[2, Y] += dy
-        q, _ = self._leg_joints(local[2], local[0], local[1])
-        return q[0]
+        q = np.empty(12)
+        legs_ik_tick(trajectory.local_poses, k, dx, dy, *self.ik_legs, q)
+        return q
+
+    @cached_property
+    def ik_legs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+        """This engine's legs and joint limits as the compiled IK takes them (``ik.ik_legs``)."""
+        return ik_legs(self.leg, self._limits)
 
     def standing_joint_targets(self) -> np.ndarray:
         """The 12 joint angles (LEG_JOINT_NAMES order) of the standing, walk-ready pose."""

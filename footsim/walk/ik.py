@@ -389,19 +389,22 @@ def legs_ik(
     """
     n = trunk.shape[1]
     joints, reachable = np.empty((n, 12)), np.empty(n, dtype=np.bool_)
-    lim = np.zeros((12, 2)) if limits is None else np.ascontiguousarray(limits, dtype=float)
     _legs_ik(
         np.ascontiguousarray(trunk, dtype=float),
         np.ascontiguousarray(left, dtype=float),
         np.ascontiguousarray(right, dtype=float),
-        leg.left.vector,
-        leg.right.vector,
-        lim,
-        limits is not None,
+        *ik_legs(leg, limits),
         joints,
         reachable,
     )
     return joints, reachable
+
+
+def ik_legs(leg: LegGeometry, limits: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+    """The legs as the compiled IK takes them (:func:`legs_ik`, :func:`legs_ik_tick`): the left and
+    right :attr:`LegChain.vector`, ``limits`` (12, 2) (zeros when None) and whether to apply them."""
+    lim = np.zeros((12, 2)) if limits is None else np.ascontiguousarray(limits, dtype=float)
+    return leg.left.vector, leg.right.vector, lim, limits is not None
 
 
 @compiled
@@ -425,41 +428,68 @@ def _rpy_matrix(roll, pitch, yaw):
 
 @compiled
 def _legs_ik(trunk, left, right, left_chain, right_chain, limits, use_limits, joints, reachable):
-    """:func:`legs_ik`'s loop: per sample the trunk rotation, then each leg's sole in the trunk
-    frame (p = Rt^T d, R = Rt^T Rf) and :func:`_chain_ik`."""
+    """:func:`legs_ik`'s loop: :func:`_legs_sample` per sample."""
     for i in range(trunk.shape[1]):
-        t00, t01, t02, t10, t11, t12, t20, t21, t22 = _rpy_matrix(trunk[3, i], trunk[4, i], trunk[5, i])
-        ok = True
-        for side in range(2):
-            feet = left if side == 0 else right
-            dx, dy, dz = feet[0, i] - trunk[0, i], feet[1, i] - trunk[1, i], feet[2, i] - trunk[2, i]
-            px = t00 * dx + t10 * dy + t20 * dz
-            py = t01 * dx + t11 * dy + t21 * dz
-            pz = t02 * dx + t12 * dy + t22 * dz
-            fr, fp, fy = feet[3, i], feet[4, i], feet[5, i]
-            if fr == 0.0 and fp == 0.0:  # flat sole: Rf = Rz(yaw)
-                c, s = math.cos(fy), math.sin(fy)
-                r00, r01, r02 = t00 * c + t10 * s, t10 * c - t00 * s, t20
-                r10, r11, r12 = t01 * c + t11 * s, t11 * c - t01 * s, t21
-                r20, r21, r22 = t02 * c + t12 * s, t12 * c - t02 * s, t22
-            else:
-                f00, f01, f02, f10, f11, f12, f20, f21, f22 = _rpy_matrix(fr, fp, fy)
-                r00 = t00 * f00 + t10 * f10 + t20 * f20
-                r01 = t00 * f01 + t10 * f11 + t20 * f21
-                r02 = t00 * f02 + t10 * f12 + t20 * f22
-                r10 = t01 * f00 + t11 * f10 + t21 * f20
-                r11 = t01 * f01 + t11 * f11 + t21 * f21
-                r12 = t01 * f02 + t11 * f12 + t21 * f22
-                r20 = t02 * f00 + t12 * f10 + t22 * f20
-                r21 = t02 * f01 + t12 * f11 + t22 * f21
-                r22 = t02 * f02 + t12 * f12 + t22 * f22
-            chain = left_chain if side == 0 else right_chain
-            ok = _chain_ik(px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, chain, joints[i], 6 * side) and ok
-        if use_limits:
-            for j in range(12):
-                q = joints[i, j]
-                clipped = min(max(q, limits[j, 0]), limits[j, 1])
-                if abs(clipped - q) > _LIMIT_TOLERANCE:
-                    ok = False
-                joints[i, j] = clipped
-        reachable[i] = ok
+        reachable[i] = _legs_sample(
+            trunk[0, i], trunk[1, i], trunk[2, i], trunk[3, i], trunk[4, i], trunk[5, i],
+            left, right, i, left_chain, right_chain, limits, use_limits, joints[i],
+        )  # fmt: skip
+
+
+@compiled
+def legs_ik_tick(local, k, dx, dy, left_chain, right_chain, limits, use_limits, joints):
+    """Both legs' joint targets at tick ``k`` of a walk trajectory with its trunk moved by
+    (``dx``, ``dy``) [m]: the walk node's trunk-PID correction (``QuinticWalk.trunk_shifted_targets``).
+
+    ``local`` (3, 6, n): the trajectory's support-frame poses (left sole, right sole, trunk;
+    ``WalkTrajectory.local_poses``); the chains, ``limits`` (12, 2) and ``use_limits`` as
+    :func:`legs_ik` passes them (``QuinticWalk.ik_legs``).  Writes the 12 targets into ``joints``
+    and returns whether the pose is reachable within the limits; the same float operations as
+    :func:`legs_ik` of the shifted poses (one shared per-sample function)."""
+    return _legs_sample(
+        local[2, 0, k] + dx, local[2, 1, k] + dy, local[2, 2, k], local[2, 3, k], local[2, 4, k], local[2, 5, k],
+        local[0], local[1], k, left_chain, right_chain, limits, use_limits, joints,
+    )  # fmt: skip
+
+
+@compiled
+def _legs_sample(tx, ty, tz, troll, tpitch, tyaw, left, right, i, left_chain, right_chain, limits, use_limits, joints):
+    """One sample of :func:`legs_ik`: the trunk at (``tx`` … ``tyaw``), the soles in column ``i``
+    of ``left`` / ``right`` (6, n); the trunk rotation, then each leg's sole in the trunk frame
+    (p = Rt^T d, R = Rt^T Rf) and :func:`_chain_ik`, into ``joints`` (12,).  Returns whether both
+    legs are reachable and within the limits."""
+    t00, t01, t02, t10, t11, t12, t20, t21, t22 = _rpy_matrix(troll, tpitch, tyaw)
+    ok = True
+    for side in range(2):
+        feet = left if side == 0 else right
+        dx, dy, dz = feet[0, i] - tx, feet[1, i] - ty, feet[2, i] - tz
+        px = t00 * dx + t10 * dy + t20 * dz
+        py = t01 * dx + t11 * dy + t21 * dz
+        pz = t02 * dx + t12 * dy + t22 * dz
+        fr, fp, fy = feet[3, i], feet[4, i], feet[5, i]
+        if fr == 0.0 and fp == 0.0:  # flat sole: Rf = Rz(yaw)
+            c, s = math.cos(fy), math.sin(fy)
+            r00, r01, r02 = t00 * c + t10 * s, t10 * c - t00 * s, t20
+            r10, r11, r12 = t01 * c + t11 * s, t11 * c - t01 * s, t21
+            r20, r21, r22 = t02 * c + t12 * s, t12 * c - t02 * s, t22
+        else:
+            f00, f01, f02, f10, f11, f12, f20, f21, f22 = _rpy_matrix(fr, fp, fy)
+            r00 = t00 * f00 + t10 * f10 + t20 * f20
+            r01 = t00 * f01 + t10 * f11 + t20 * f21
+            r02 = t00 * f02 + t10 * f12 + t20 * f22
+            r10 = t01 * f00 + t11 * f10 + t21 * f20
+            r11 = t01 * f01 + t11 * f11 + t21 * f21
+            r12 = t01 * f02 + t11 * f12 + t21 * f22
+            r20 = t02 * f00 + t12 * f10 + t22 * f20
+            r21 = t02 * f01 + t12 * f11 + t22 * f21
+            r22 = t02 * f02 + t12 * f12 + t22 * f22
+        chain = left_chain if side == 0 else right_chain
+        ok = _chain_ik(px, py, pz, r00, r01, r02, r10, r11, r12, r20, r21, r22, chain, joints, 6 * side) and ok
+    if use_limits:
+        for j in range(12):
+            q = joints[j]
+            clipped = min(max(q, limits[j, 0]), limits[j, 1])
+            if abs(clipped - q) > _LIMIT_TOLERANCE:
+                ok = False
+            joints[j] = clipped
+    return ok
