@@ -264,7 +264,7 @@ class EvalAppConfig:
     video_fps: float = MISSING
     shard: Optional[str] = MISSING
     merge: Optional[str] = MISSING
-    backends: Optional[str] = MISSING
+    backends: Any = MISSING  # a list [A,B] or a string 'A,B' (footsim-eval's side-by-side video)
 
 
 @dataclass

@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from footsim import config as fconf
 from footsim.env import FootstepEnv, make_env
@@ -585,3 +585,51 @@ def evaluate_baseline(cfg_eval, out_dir: Path, label: str | None = None) -> dict
     return _finish(
         out_dir, records, name, cfg_eval, shard, evaluation, len(scenes), baseline=True, config_used=cfg_used
     )
+
+
+def evaluate_side_by_side(run_dir: Path, out_dir: Path, cfg_eval) -> list[dict]:
+    """``footsim-eval run=RUN_DIR video=true backends=[A,B,...]`` (or ``'backends=A,B'``): the run's policy on each backend
+    (each walking with that backend's walk preset, as ``backend=B`` does), on the first
+    ``video_episodes`` scenes of the eval set, filmed side by side into
+    ``videos/side_by_side_III.mp4`` (``footsim.video.side_by_side``); the episodes' records go to
+    ``side_by_side.json``.  Returns them (one per scene and backend)."""
+    from footsim.backends.base import require_known_backends
+    from footsim.video import side_by_side
+
+    given = cfg_eval.backends
+    parts = list(given) if isinstance(given, (list, tuple, ListConfig)) else str(given).split(",")
+    names = [str(n).strip() for n in parts if str(n).strip()]
+    if len(names) < 2:
+        raise SystemExit(f"footsim-eval: backends= needs two or more backends (A,B), got {cfg_eval.backends!r}")
+    require_known_backends(names, "footsim-eval")
+    if not bool(cfg_eval.get("video", False)):
+        raise SystemExit("footsim-eval: backends= films the backends side by side; add video=true")
+    if cfg_eval.get("backend") is not None:
+        note_not_honoured(f"backend={cfg_eval.backend.name}", f"the backends {', '.join(names)}", "backend=")
+    fps = float(cfg_eval.get("video_fps", 30.0))
+    policy = LoadedPolicy(run_dir)
+    envs: list[FootstepEnv] = []
+    try:
+        for name in names:
+            sub = cfg_eval.copy()
+            OmegaConf.set_struct(sub, False)
+            sub.backend = fconf.load_preset("backend", name)
+            envs.append(make_env(eval_run_config(run_dir, sub), render_mode="rgb_array"))
+        scenes = eval_scenes(cfg_eval, envs[0].sampler)
+        for env in envs:
+            env.sampler.check_scenes(scenes)
+        controllers = [PolicyController(policy, deterministic=bool(cfg_eval.deterministic)) for _ in envs]
+        records = []
+        for i in range(min(int(cfg_eval.get("video_episodes", 3)), len(scenes))):
+            episodes, path, frames = side_by_side(
+                envs, controllers, names, scenes[i], int(cfg_eval.get("seed", 0)) + i,
+                out_dir / "videos" / f"side_by_side_{i:03d}.mp4", fps,
+            )  # fmt: skip
+            records += [{"scene": i, "backend": name, **r} for name, r in zip(names, episodes)]
+            outcomes = ", ".join(f"{name} {r['outcome']} ({r['time_s']:.1f} s)" for name, r in zip(names, episodes))
+            print(f"scene {i}: {outcomes} -> {path} ({frames} frames)")
+    finally:
+        for env in envs:
+            env.close()
+    write_json(out_dir / "side_by_side.json", {"run": str(run_dir), "backends": names, "episodes": records})
+    return records
