@@ -139,3 +139,27 @@ def test_without_the_ffmpeg_plugin_a_gif_is_written_and_said_once(tmp_path, monk
 def test_bad_fps_is_refused_naming_the_key():
     with pytest.raises(ValueError, match="video_fps"):
         ClipWriter("/tmp/never", fps=0)
+
+
+def test_side_by_side_steps_each_episode_as_alone_and_pads_the_shorter(tmp_path):
+    pytest.importorskip("mujoco")
+    from footsim.video import side_by_side
+
+    scene = Scene(goal=Pose2D(1.5, 0.0, 0.0))
+    envs = [_env("pymunk", max_steps=2), _env("mujoco", max_steps=3)]
+    try:
+        alone = [run_episode(env, Walk(), scene, seed=4)[0] for env in envs]
+        records, path, written = side_by_side(
+            envs, [Walk(), Walk()], ["pymunk", "mujoco"], scene, seed=4, path=tmp_path / "both", fps=20.0
+        )
+    finally:
+        for env in envs:
+            env.close()
+    assert records == alone  # lock step changes neither episode
+    frames, _ = imageio_ffmpeg.count_frames_and_secs(str(path))
+    assert frames == written == max(_expected_frames(r["time_s"], 20.0) for r in alone)
+    import imageio.v2 as imageio
+
+    first = imageio.get_reader(str(path)).get_data(0)
+    assert first.shape == (600, 600 + SMALL[0], 3)  # the 2D drawing (600 px) beside the 3D frame, padded
+    assert (first[SMALL[1] :, 600:] < 10).all()  # below the shorter frame: black padding

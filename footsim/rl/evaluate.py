@@ -588,8 +588,8 @@ def evaluate_baseline(cfg_eval, out_dir: Path, label: str | None = None) -> dict
 
 
 def evaluate_side_by_side(run_dir: Path, out_dir: Path, cfg_eval) -> list[dict]:
-    """``footsim-eval run=RUN_DIR video=true backends=[A,B,...]`` (or ``'backends=A,B'``): the run's policy on each backend
-    (each walking with that backend's walk preset, as ``backend=B`` does), on the first
+    """``footsim-eval run=RUN_DIR video=true backends=[A,B,...]`` (or ``'backends=A,B'``): the run's
+    policy on each backend (each walking with that backend's walk preset, as ``backend=B`` does), on the first
     ``video_episodes`` scenes of the eval set, filmed side by side into
     ``videos/side_by_side_III.mp4`` (``footsim.video.side_by_side``); the episodes' records go to
     ``side_by_side.json``.  Returns them (one per scene and backend)."""
