@@ -722,7 +722,10 @@ class PybulletSim(PhysicsSim):
             flags=p.ER_NO_SEGMENTATION_MASK,
             physicsClientId=c,
         )
-        return np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[:, :, :3].copy()
+        frame = np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[:, :, :3].copy()
+        if overlay is not None and overlay.ray_endpoints is not None and overlay.believed is not None:
+            frame = _draw_rays(frame, overlay, camera, base)
+        return frame
 
     def _draw_overlay(self, overlay: RenderOverlay) -> None:
         """The goal disc and heading arrow and the commanded footsteps as visual-only bodies (no
@@ -794,6 +797,35 @@ class PybulletSim(PhysicsSim):
             world = None
         world_pool.release(self.client, self._urdf_path, self._key if world is not None else None, world)
         self.client = -1
+
+
+def _draw_rays(frame: np.ndarray, overlay: RenderOverlay, camera: TrackingCamera, base: Pose2D) -> np.ndarray:
+    """The rays drawn over ``frame`` (TinyRenderer draws no lines): each segment from the
+    believed pose, 2 cm above the floor, projected with the camera model (the one the frame was
+    rendered from; ``tests/test_video_camera.py`` checks that the two agree), cut where it would
+    pass behind the camera."""
+    from PIL import Image, ImageDraw
+
+    eye, target = camera.eye(base)
+    forward = (target - eye) / np.linalg.norm(target - eye)
+    assert overlay.believed is not None and overlay.ray_endpoints is not None
+    start = np.array([overlay.believed.x, overlay.believed.y, 0.02])
+    ends = np.column_stack([np.asarray(overlay.ray_endpoints, dtype=float), np.full(len(overlay.ray_endpoints), 0.02)])
+    near = 0.1  # [m] in front of the camera
+    d0 = float((start - eye) @ forward)
+    if d0 <= near:
+        return frame
+    d1 = (ends - eye) @ forward
+    cut = np.where(d1 < near, (d0 - near) / np.maximum(d0 - d1, 1e-12), 1.0)[:, None]
+    ends = start + cut * (ends - start)
+    height, width = frame.shape[:2]
+    pixels = camera.project(np.vstack([start, ends]), base, width, height)
+    image = Image.fromarray(frame)
+    draw = ImageDraw.Draw(image)
+    origin = tuple(pixels[0])
+    for end in pixels[1:]:
+        draw.line([origin, tuple(end)], fill=(255, 204, 0), width=1)
+    return np.asarray(image).copy()
 
 
 class PybulletBackend(Physics3DBackend):
