@@ -1,4 +1,4 @@
-"""Videos at the simulator's pace (footsim.video): filming never changes an episode, the clips
+"""Videos at the simulator's pace (footsim.rl.video): filming never changes an episode, the clips
 have one frame per 1/fps simulated seconds (read back by ffmpeg itself, not by our writer), the
 2D backend's swing foot moves between put-downs, and one camera frames the 3D backends alike."""
 
@@ -13,9 +13,9 @@ import pytest
 from footsim.env import FootstepEnv
 from footsim.geometry import Pose2D
 from footsim.rl.evaluate import evaluate, run_episode
+from footsim.rl.video import END_HOLD_S, ClipWriter, EpisodeFilm, film_episode
 from footsim.scene import Obstacle, Scene
 from footsim.tasks.scenes import sample_scenes
-from footsim.video import END_HOLD_S, ClipWriter, EpisodeFilm, film_episode
 
 imageio_ffmpeg = pytest.importorskip("imageio_ffmpeg", reason="the video extra (imageio[ffmpeg])")
 
@@ -68,8 +68,10 @@ def test_a_3d_clip_has_fps_frames_per_simulated_second(backend, tmp_path):
     try:
         scene = Scene(goal=Pose2D(1.5, 0.2, 0.0), obstacles=(Obstacle(-0.8, 0.9, 0.2),))
         record, path, written = film_episode(env, Walk(), scene, seed=0, path=tmp_path / "clip", fps=24.0)
+        unfilmed, _ = run_episode(env, Walk(), scene, seed=0)
     finally:
         env.close()
+    assert record == unfilmed
     frames, seconds = imageio_ffmpeg.count_frames_and_secs(str(path))
     assert path.suffix == ".mp4" and frames == written
     # the simulated time, at 24 fps, plus the held last frame: real time
@@ -116,7 +118,7 @@ def test_the_2d_swing_foot_moves_between_put_downs():
 
 
 def test_without_the_ffmpeg_plugin_a_gif_is_written_and_said_once(tmp_path, monkeypatch):
-    import footsim.video as video
+    import footsim.rl.video as video
 
     monkeypatch.setattr(video, "_warned_gif", False)
     frame = np.zeros((24, 32, 3), dtype=np.uint8)
@@ -143,7 +145,7 @@ def test_bad_fps_is_refused_naming_the_key():
 
 def test_side_by_side_steps_each_episode_as_alone_and_pads_the_shorter(tmp_path):
     pytest.importorskip("mujoco")
-    from footsim.video import side_by_side
+    from footsim.rl.video import side_by_side
 
     scene = Scene(goal=Pose2D(1.5, 0.0, 0.0))
     envs = [_env("pymunk", max_steps=2), _env("mujoco", max_steps=3)]

@@ -116,7 +116,7 @@ class TrackingCamera:
 
 
 class FrameHook(Protocol):
-    """Frames while a 3D double step runs (``Physics3DBackend.frame_hook``; ``footsim.video``).
+    """Frames while a 3D double step runs (``Physics3DBackend.frame_hook``; ``footsim.rl.video``).
 
     At the start of each double step the driver calls ``begin(control_dt, footsteps)`` (the
     step's commanded put-downs in the world); it returns after how many control ticks of the

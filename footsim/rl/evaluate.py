@@ -63,7 +63,7 @@ class PolicyController:
 class EpisodeRecord:
     """One episode of ``controller`` on ``env`` in ``scene`` (seed ``seed``), a double step at a
     time: :meth:`begin`, then :meth:`step` until ``done``, then :meth:`record` (what
-    ``episodes.csv`` holds).  :func:`run_episode` runs it in one go; ``footsim.video.side_by_side``
+    ``episodes.csv`` holds).  :func:`run_episode` runs it in one go; ``footsim.rl.video.side_by_side``
     steps several in lock step."""
 
     def __init__(self, env, controller: Controller, scene: Scene, seed: int):
@@ -110,7 +110,7 @@ class EpisodeRecord:
 def run_episode(env, controller: Controller, scene: Scene, seed: int, record_frames: bool = False, film=None):
     """One episode; returns ``(record, frames)``.  ``record_frames``: ``env.render()`` after the
     reset and after each double step (one frame per double step); ``film``: a
-    ``footsim.video.EpisodeFilm`` that films it at the simulator's pace (it takes the frames)."""
+    ``footsim.rl.video.EpisodeFilm`` that films it at the simulator's pace (it takes the frames)."""
     episode = EpisodeRecord(env, controller, scene, seed)
     episode.begin()
     frames = [env.render()] if record_frames else []
@@ -145,7 +145,7 @@ def evaluate(
 ) -> list[dict]:
     """Run every scene once (or the scenes at ``indices``); episode ``i`` runs scene ``i`` with seed
     ``seed + i``.  With ``video_dir``, episodes ``i < video_episodes`` are filmed at ``video_fps``
-    frames per simulated second into ``episode_III.mp4`` (``footsim.video``; GIF without the
+    frames per simulated second into ``episode_III.mp4`` (``footsim.rl.video``; GIF without the
     ``video`` extra), captioned ``video_label``.  Filming does not change an episode.  A scene the
     robot cannot start or finish in is refused before any episode, naming its index."""
     env.unwrapped.sampler.check_scenes(scenes)
@@ -157,7 +157,7 @@ def evaluate(
         iterator = tqdm(iterator, desc="evaluating", unit="scene", leave=False)
     for i in iterator:
         if video_dir is not None and i < video_episodes:
-            from footsim.video import film_episode
+            from footsim.rl.video import film_episode
 
             record, _, _ = film_episode(
                 env, controller, scenes[i], seed + i, video_dir / f"episode_{i:03d}.mp4", video_fps, label=video_label
@@ -591,10 +591,10 @@ def evaluate_side_by_side(run_dir: Path, out_dir: Path, cfg_eval) -> list[dict]:
     """``footsim-eval run=RUN_DIR video=true backends=[A,B,...]`` (or ``'backends=A,B'``): the run's
     policy on each backend (each walking with that backend's walk preset, as ``backend=B`` does), on the first
     ``video_episodes`` scenes of the eval set, filmed side by side into
-    ``videos/side_by_side_III.mp4`` (``footsim.video.side_by_side``); the episodes' records go to
+    ``videos/side_by_side_III.mp4`` (``footsim.rl.video.side_by_side``); the episodes' records go to
     ``side_by_side.json``.  Returns them (one per scene and backend)."""
     from footsim.backends.base import require_known_backends
-    from footsim.video import side_by_side
+    from footsim.rl.video import side_by_side
 
     given = cfg_eval.backends
     parts = list(given) if isinstance(given, (list, tuple, ListConfig)) else str(given).split(",")
