@@ -205,19 +205,28 @@ class FootstepEnv(gym.Env):
             return None
         if self.closed:
             raise RuntimeError(self._closed_message("render"))
+        return self.backend.render(self.render_overlay())
+
+    def render_overlay(self, footsteps: tuple[Pose2D, ...] = ()) -> RenderOverlay:
+        """What a frame draws over the scene now: the goal (green once reached), the believed pose,
+        the rays from it when the task observes obstacles, and ``footsteps`` (commanded put-downs,
+        world frame) with the robot's foot size."""
+        if self.scene is None:
+            raise RuntimeError(self._closed_message("render") if self.closed else "render() called before reset()")
         rays = None
         config = self.task.config
         if config.obstacles:
             dists = nav.ray_distances(self._believed, self.scene.all_obstacles, config.n_rays, config.ray_range)
             angles = self._believed.theta + np.arange(config.n_rays) * (2 * math.pi / config.n_rays)
             rays = np.stack([self._believed.x + dists * np.cos(angles), self._believed.y + dists * np.sin(angles)], 1)
-        overlay = RenderOverlay(
+        return RenderOverlay(
             goal=self.scene.goal,
             ray_endpoints=rays,
             believed=self._believed,
             reached=nav.is_success(self.task.pose, self.scene.goal, self.task.config),
+            footsteps=tuple(footsteps),
+            foot_size=(self.robot.foot_length, self.robot.foot_width),
         )
-        return self.backend.render(overlay)
 
     def close(self):
         """Release the simulator; calling it again does nothing.  After it, ``reset``, ``step`` and

@@ -52,6 +52,18 @@ class PymunkBackendConfig:
 
 
 @dataclass
+class CameraConfig:
+    """The 3D backends' render camera (``footsim.backends.base.TrackingCamera``: its defaults)."""
+
+    distance: float = MISSING
+    elevation: float = MISSING
+    azimuth: float = MISSING
+    fov: float = MISSING
+    height: float = MISSING
+    shadows: bool = MISSING
+
+
+@dataclass
 class Physics3DConfig:
     """Options of the shared 3D driver (``footsim.backends.physics3d.Physics3DBackend``)."""
 
@@ -63,6 +75,7 @@ class Physics3DConfig:
     settle_time: float = MISSING
     out_of_bounds: float = MISSING
     render_size: List[int] = MISSING
+    camera: CameraConfig = MISSING  # unset: TrackingCamera's defaults
     rigid_upper_body: bool = MISSING
 
 
@@ -102,8 +115,6 @@ class PybulletBackendConfig(Physics3DConfig):
     obstacle_height: float = MISSING
     self_collision: bool = MISSING
     max_base_speed: float = MISSING
-    camera_distance: float = MISSING
-    camera_pitch: float = MISSING
 
 
 # -- robot, task ---------------------------------------------------------------------------------
@@ -238,6 +249,7 @@ class EvalSection:
     plot: bool = MISSING
     video: bool = MISSING
     video_episodes: int = MISSING
+    video_fps: float = MISSING
 
 
 @dataclass
@@ -259,8 +271,10 @@ class EvalAppConfig:
     plot: bool = MISSING
     video: bool = MISSING
     video_episodes: int = MISSING
+    video_fps: float = MISSING
     shard: Optional[str] = MISSING
     merge: Optional[str] = MISSING
+    backends: Any = MISSING  # a list [A,B] or a string 'A,B' (footsim-eval's side-by-side video)
 
 
 @dataclass

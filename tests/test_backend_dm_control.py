@@ -232,7 +232,6 @@ def test_mjcf_model_is_dm_control_idiom(backend):
     sim = backend.sim
     assert isinstance(sim.mjcf_model, mjcf.RootElement)
     assert isinstance(sim.physics, mjcf.Physics)
-    assert sim.mjcf_model.find("camera", "track") is not None
     assert sim.physics.model.opt.timestep == pytest.approx(backend.physics_dt)
 
 

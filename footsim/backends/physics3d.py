@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from footsim.backends.base import Backend, RenderOverlay, StepResult
+from footsim.backends.base import Backend, FrameHook, RenderOverlay, StepResult, TrackingCamera
 from footsim.backends.control import (
     TrunkPID,
     TrunkStabilizer,
@@ -223,8 +223,24 @@ class PhysicsSim(ABC):
         if set(values) - {"terrain_slope_direction"}:
             raise ValueError(f"{type(self).__name__} cannot apply randomization terms {sorted(values)}")
 
-    def render(self, overlay: RenderOverlay | None, width: int, height: int) -> np.ndarray | None:
+    def render(
+        self,
+        overlay: RenderOverlay | None,
+        width: int,
+        height: int,
+        camera: TrackingCamera | None = None,
+        base: Pose2D | None = None,
+    ) -> np.ndarray | None:
+        """An RGB frame from ``camera`` (None: the default :class:`TrackingCamera`) following the
+        base's planar pose ``base`` (None: read from the sim); None: this sim has no renderer."""
         return None
+
+    def camera_view(self, camera: TrackingCamera | None, base: Pose2D | None) -> tuple[TrackingCamera, Pose2D]:
+        """``render``'s camera and base pose, with its defaults filled in."""
+        if base is None:
+            position, rotation = self.base_pose()
+            base = Pose2D(float(position[0]), float(position[1]), math.atan2(rotation[1, 0], rotation[0, 0]))
+        return (TrackingCamera() if camera is None else camera), base
 
     def close(self) -> None:
         """Release what the simulator holds (nothing by default)."""
@@ -238,6 +254,31 @@ _STEPPING = (int(WalkState.START_STEP), int(WalkState.WALKING))
 def _layouts(*arrays: np.ndarray) -> tuple:
     """What numba's types of these arrays depend on (dtype, dimensions, layout, writability)."""
     return tuple((a.dtype, a.ndim, a.flags.num) for a in arrays)  # flags.num: every flag as bits
+
+
+def _filmed(
+    run: Callable[[int, int], int | None], hook: FrameHook, done: int, due: list[int]
+) -> Callable[[int, int], int | None]:
+    """``run`` (ticks ``k0 … k1 − 1`` of a part of the double step that starts after ``done``
+    ticks) split where a frame is due: ``due[0]`` ticks into the double step, ``hook.frame``
+    renders and names the next one.  The ticks and their order are ``run``'s: only the calls are
+    cut, so the checks between them stay at the same ticks."""
+
+    def filmed(k0: int, k1: int) -> int | None:
+        k = k0
+        while due[0] - done <= k1:
+            cut = max(due[0] - done, k)
+            if cut > k:
+                ended = run(k, cut)
+                if ended is not None:  # a phase reset: the step goes on from a new plan
+                    if done + ended + 1 == due[0]:  # it stopped where the frame is due
+                        due[0] = hook.frame(due[0])
+                    return ended
+                k = cut
+            due[0] = hook.frame(done + k)
+        return run(k, k1) if k < k1 else None
+
+    return filmed
 
 
 class Physics3DBackend(Backend):
@@ -267,6 +308,7 @@ class Physics3DBackend(Backend):
         out_of_bounds: float = 50.0,
         render_size: tuple[int, int] = (480, 480),
         stabilizer: dict | None = None,
+        camera: dict | None = None,
         **sim_options,
     ):
         control_dt = self.default_control_dt if control_dt is None else control_dt
@@ -276,6 +318,7 @@ class Physics3DBackend(Backend):
         elif sim_options:
             raise ValueError(f"backend {self.name}: unknown option(s) {sorted(sim_options)}")
         try:
+            self.camera = TrackingCamera.from_config(camera)
             self.stabilizer = TrunkStabilizer.from_config(stabilizer)
             self._init_driver(
                 robot,
@@ -624,10 +667,18 @@ class Physics3DBackend(Backend):
         self.sim.advance(self.settle_ticks * self.substeps)  # let the contacts settle
         return self.planar_pose()
 
+    #: Frames while a double step runs (video, :class:`~footsim.backends.base.FrameHook`); None:
+    #: no frames, and ``execute`` runs exactly the code it runs without a recorder.
+    frame_hook: FrameHook | None = None
+
     def execute(self, double_step: DoubleStep) -> StepResult:
         if self._sim_dirty:  # per-step physics terms drawn since the last step
             self._apply_sim_randomization(None)
+        hook = self.frame_hook
+        before = self.engine.feet if hook is not None else None
         trajectory = self.engine.double_step(double_step)
+        if hook is not None:
+            due = [hook.begin(self.control_dt, self._commanded_footsteps(before, trajectory))]
         self._max_tilt = 0.0  # updated by every _status() check of this step
         fell = collided = stopped = False
         error = None
@@ -637,6 +688,8 @@ class Physics3DBackend(Backend):
         while True:
             ticks, n_ticks, ended = 0, len(trajectory.joint_targets), None
             run = self._ticks(trajectory)
+            if hook is not None:  # the same runs of ticks, cut where a frame is due
+                run = _filmed(run, hook, done, due)
             while ticks < n_ticks:  # runs of `check` ticks, the checks between them
                 start, ticks = ticks, min(ticks + check, n_ticks)
                 ended = run(start, ticks)
@@ -679,6 +732,13 @@ class Physics3DBackend(Backend):
             tilt=self._tilt if error is None else (0.0, 0.0),
             max_tilt=self._max_tilt if error is None else 0.0,
         )
+
+    def _commanded_footsteps(self, before, trajectory: WalkTrajectory) -> tuple[Pose2D, Pose2D]:
+        """Where this double step's two put-downs are commanded (right, then left), in the world:
+        the engine's planned landings (its odometry frame) moved by the offset between the
+        engine's navigation frame at the step's start and the base's true planar pose."""
+        frame = self.planar_pose().compose(before.nav_pose.inverse())
+        return frame.compose(trajectory.feet.right), frame.compose(trajectory.feet.left)
 
     @property
     def tick(self) -> int:
@@ -753,7 +813,7 @@ class Physics3DBackend(Backend):
         self.sim.advance(int(round(seconds / self.control_dt)) * self.substeps)
 
     def render(self, overlay: RenderOverlay | None = None) -> np.ndarray | None:
-        return self.sim.render(overlay, *self.render_size)
+        return self.sim.render(overlay, *self.render_size, self.camera, self.planar_pose())
 
     def close(self) -> None:
         self._entries.clear()  # they hold the sim's state arrays

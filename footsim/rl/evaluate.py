@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from footsim import config as fconf
 from footsim.env import FootstepEnv, make_env
@@ -60,53 +60,75 @@ class PolicyController:
         return self.policy(obs, deterministic=self.deterministic)
 
 
-def run_episode(env, controller: Controller, scene: Scene, seed: int, record_frames: bool = False):
-    obs, info = env.reset(seed=seed, options={"scene": scene})
-    controller.reset(scene, info)
-    total = 0.0
-    contact_steps = 0  # 3D: double steps with a robot-obstacle contact (they do not end the episode)
+class EpisodeRecord:
+    """One episode of ``controller`` on ``env`` in ``scene`` (seed ``seed``), a double step at a
+    time: :meth:`begin`, then :meth:`step` until ``done``, then :meth:`record` (what
+    ``episodes.csv`` holds).  :func:`run_episode` runs it in one go; ``footsim.rl.video.side_by_side``
+    steps several in lock step."""
+
+    def __init__(self, env, controller: Controller, scene: Scene, seed: int):
+        self.env, self.controller, self.scene, self.seed = env, controller, scene, seed
+        self.done = False
+        self.total = 0.0
+        self.contact_steps = 0  # 3D: double steps with a robot-obstacle contact (they do not end the episode)
+        self.obs: Any = None  # the last observation (an array once begun)
+        self.info: dict = {}
+
+    def begin(self) -> None:
+        self.obs, self.info = self.env.reset(seed=self.seed, options={"scene": self.scene})
+        self.controller.reset(self.scene, self.info)
+
+    def step(self) -> dict:
+        obs, reward, terminated, truncated, info = self.env.step(self.controller(self.obs, self.info))
+        self.obs, self.info = obs, info
+        self.total += reward
+        self.contact_steps += bool(info.get("collided", False))
+        self.done = bool(terminated or truncated)
+        return info
+
+    def record(self) -> dict:
+        info, scene = self.info, self.scene
+        pose = info["pose"]
+        record = {
+            "outcome": info["outcome"],
+            "time_s": float(info["time_s"]),
+            "steps": int(info["steps"]),
+            "return": float(self.total),
+            "contact_steps": self.contact_steps,
+            "final_x": float(pose[0]),
+            "final_y": float(pose[1]),
+            "final_theta": float(pose[2]),
+            "goal_x": scene.goal.x,
+            "goal_y": scene.goal.y,
+            "goal_theta": scene.goal.theta,
+        }
+        if hasattr(self.controller, "episode_info"):  # e.g. a planner's failure reason and planning times
+            record.update(self.controller.episode_info())
+        return record
+
+
+def run_episode(env, controller: Controller, scene: Scene, seed: int, record_frames: bool = False, film=None):
+    """One episode; returns ``(record, frames)``.  ``record_frames``: ``env.render()`` after the
+    reset and after each double step (one frame per double step); ``film``: a
+    ``footsim.rl.video.EpisodeFilm`` that films it at the simulator's pace (it takes the frames)."""
+    episode = EpisodeRecord(env, controller, scene, seed)
+    episode.begin()
     frames = [env.render()] if record_frames else []
-    while True:
-        obs, reward, terminated, truncated, info = env.step(controller(obs, info))
-        total += reward
-        contact_steps += bool(info.get("collided", False))
-        if record_frames:
-            frames.append(env.render())
-        if terminated or truncated:
-            break
-    pose = info["pose"]
-    record = {
-        "outcome": info["outcome"],
-        "time_s": float(info["time_s"]),
-        "steps": int(info["steps"]),
-        "return": float(total),
-        "contact_steps": contact_steps,
-        "final_x": float(pose[0]),
-        "final_y": float(pose[1]),
-        "final_theta": float(pose[2]),
-        "goal_x": scene.goal.x,
-        "goal_y": scene.goal.y,
-        "goal_theta": scene.goal.theta,
-    }
-    if hasattr(controller, "episode_info"):  # e.g. a planner's failure reason and planning times
-        record.update(controller.episode_info())
-    return record, frames
-
-
-def save_video(path: Path, frames: list[np.ndarray], fps: float = 2.0) -> None:
-    """An animated GIF (PIL only, no codec needed), written atomically."""
-    from PIL import Image
-
-    images = [Image.fromarray(f) for f in frames if f is not None]
-    if not images:
-        return
-    atomic_save(
-        lambda tmp: images[0].save(
-            tmp, format="GIF", save_all=True, append_images=images[1:], duration=int(1000 / fps), loop=0
-        ),
-        path,
-        ".gif",
-    )
+    if film is not None:
+        film.start()
+    try:
+        while not episode.done:
+            info = episode.step()
+            if film is not None:
+                film.stepped(info)
+            if record_frames:
+                frames.append(env.render())
+        if film is not None:
+            film.finish(episode.info)
+    finally:
+        if film is not None:
+            film.detach()
+    return episode.record(), frames
 
 
 def evaluate(
@@ -118,9 +140,13 @@ def evaluate(
     video_dir: Path | None = None,
     video_episodes: int = 0,
     indices: Sequence[int] | None = None,
+    video_fps: float = 30.0,
+    video_label: str = "",
 ) -> list[dict]:
     """Run every scene once (or the scenes at ``indices``); episode ``i`` runs scene ``i`` with seed
-    ``seed + i``.  With ``video_dir``, episodes ``i < video_episodes`` are saved as GIFs.  A scene the
+    ``seed + i``.  With ``video_dir``, episodes ``i < video_episodes`` are filmed at ``video_fps``
+    frames per simulated second into ``episode_III.mp4`` (``footsim.rl.video``; GIF without the
+    ``video`` extra), captioned ``video_label``.  Filming does not change an episode.  A scene the
     robot cannot start or finish in is refused before any episode, naming its index."""
     env.unwrapped.sampler.check_scenes(scenes)
     records = []
@@ -130,11 +156,14 @@ def evaluate(
 
         iterator = tqdm(iterator, desc="evaluating", unit="scene", leave=False)
     for i in iterator:
-        filming = video_dir is not None and i < video_episodes
-        record, frames = run_episode(env, controller, scenes[i], seed=seed + i, record_frames=filming)
-        if filming:
-            assert video_dir is not None
-            save_video(video_dir / f"episode_{i:03d}.gif", frames)
+        if video_dir is not None and i < video_episodes:
+            from footsim.rl.video import film_episode
+
+            record, _, _ = film_episode(
+                env, controller, scenes[i], seed + i, video_dir / f"episode_{i:03d}.mp4", video_fps, label=video_label
+            )
+        else:
+            record, _ = run_episode(env, controller, scenes[i], seed=seed + i)
         records.append({"scene": i, **record})
     return records
 
@@ -479,6 +508,8 @@ def evaluate_run(run_cfg, run_dir: Path, out_dir: Path, cfg_eval, label: str | N
             video_dir=out_dir / "videos" if video else None,
             video_episodes=int(cfg_eval.get("video_episodes", 3)),
             indices=None if shard is None else shard.scenes(len(scenes)),
+            video_fps=float(cfg_eval.get("video_fps", 30.0)),
+            video_label=env.config["backend"]["name"],
         )
     finally:
         env.close()
@@ -536,6 +567,8 @@ def evaluate_baseline(cfg_eval, out_dir: Path, label: str | None = None) -> dict
             video_dir=out_dir / "videos" if video else None,
             video_episodes=int(cfg_eval.get("video_episodes", 3)),
             indices=None if shard is None else shard.scenes(len(scenes)),
+            video_fps=float(cfg_eval.get("video_fps", 30.0)),
+            video_label=env.config["backend"]["name"],
         )
         cfg_used = {"controller": controller_cfg, **env.config}
     finally:
@@ -552,3 +585,51 @@ def evaluate_baseline(cfg_eval, out_dir: Path, label: str | None = None) -> dict
     return _finish(
         out_dir, records, name, cfg_eval, shard, evaluation, len(scenes), baseline=True, config_used=cfg_used
     )
+
+
+def evaluate_side_by_side(run_dir: Path, out_dir: Path, cfg_eval) -> list[dict]:
+    """``footsim-eval run=RUN_DIR video=true backends=[A,B,...]`` (or ``'backends=A,B'``): the run's
+    policy on each backend (each walking with that backend's walk preset, as ``backend=B`` does), on the first
+    ``video_episodes`` scenes of the eval set, filmed side by side into
+    ``videos/side_by_side_III.mp4`` (``footsim.rl.video.side_by_side``); the episodes' records go to
+    ``side_by_side.json``.  Returns them (one per scene and backend)."""
+    from footsim.backends.base import require_known_backends
+    from footsim.rl.video import side_by_side
+
+    given = cfg_eval.backends
+    parts = list(given) if isinstance(given, (list, tuple, ListConfig)) else str(given).split(",")
+    names = [str(n).strip() for n in parts if str(n).strip()]
+    if len(names) < 2:
+        raise SystemExit(f"footsim-eval: backends= needs two or more backends (A,B), got {cfg_eval.backends!r}")
+    require_known_backends(names, "footsim-eval")
+    if not bool(cfg_eval.get("video", False)):
+        raise SystemExit("footsim-eval: backends= films the backends side by side; add video=true")
+    if cfg_eval.get("backend") is not None:
+        note_not_honoured(f"backend={cfg_eval.backend.name}", f"the backends {', '.join(names)}", "backend=")
+    fps = float(cfg_eval.get("video_fps", 30.0))
+    policy = LoadedPolicy(run_dir)
+    envs: list[FootstepEnv] = []
+    try:
+        for name in names:
+            sub = cfg_eval.copy()
+            OmegaConf.set_struct(sub, False)
+            sub.backend = fconf.load_preset("backend", name)
+            envs.append(make_env(eval_run_config(run_dir, sub), render_mode="rgb_array"))
+        scenes = eval_scenes(cfg_eval, envs[0].sampler)
+        for env in envs:
+            env.sampler.check_scenes(scenes)
+        controllers = [PolicyController(policy, deterministic=bool(cfg_eval.deterministic)) for _ in envs]
+        records = []
+        for i in range(min(int(cfg_eval.get("video_episodes", 3)), len(scenes))):
+            episodes, path, frames = side_by_side(
+                envs, controllers, names, scenes[i], int(cfg_eval.get("seed", 0)) + i,
+                out_dir / "videos" / f"side_by_side_{i:03d}.mp4", fps,
+            )  # fmt: skip
+            records += [{"scene": i, "backend": name, **r} for name, r in zip(names, episodes)]
+            outcomes = ", ".join(f"{name} {r['outcome']} ({r['time_s']:.1f} s)" for name, r in zip(names, episodes))
+            print(f"scene {i}: {outcomes} -> {path} ({frames} frames)")
+    finally:
+        for env in envs:
+            env.close()
+    write_json(out_dir / "side_by_side.json", {"run": str(run_dir), "backends": names, "episodes": records})
+    return records

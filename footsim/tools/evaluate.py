@@ -14,7 +14,14 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.types import RunMode
 
 from footsim.config import conf_dir
-from footsim.rl.evaluate import eval_run_config, evaluate_baseline, evaluate_run, merge_shards, shard_of
+from footsim.rl.evaluate import (
+    eval_run_config,
+    evaluate_baseline,
+    evaluate_run,
+    evaluate_side_by_side,
+    merge_shards,
+    shard_of,
+)
 from footsim.schema import register_schemas
 from footsim.utils import note_not_honoured
 
@@ -41,6 +48,9 @@ def _main(cfg) -> dict | None:
     if cfg.run is None:
         raise SystemExit("footsim-eval: run=RUN_DIR is required (or controller=velocity|footstep for a baseline)")
     run_dir = Path(cfg.run).expanduser().resolve()
+    if cfg.get("backends"):  # the same scenes filmed on several backends, side by side
+        evaluate_side_by_side(run_dir, _out_dir(cfg), cfg)
+        return None
     run_cfg = eval_run_config(run_dir, cfg)
     return evaluate_run(run_cfg, run_dir, _out_dir(cfg), cfg)
 

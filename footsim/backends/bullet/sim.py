@@ -57,10 +57,11 @@ import numpy as np
 import pybullet as p
 from scipy.spatial.transform import Rotation
 
-from footsim.backends.base import RenderOverlay
+from footsim.backends.base import RenderOverlay, TrackingCamera
 from footsim.backends.bullet import world_pool
 from footsim.backends.control import ServoFeedForward
 from footsim.backends.physics3d import PHYSICS_TERMS, Physics3DBackend, PhysicsSim, SimState, levelling_rotation
+from footsim.geometry import Pose2D
 from footsim.robots.spec import RobotSpec
 from footsim.robots.urdf import urdf_xml
 from footsim.scene import Scene
@@ -119,8 +120,6 @@ class PybulletSim(PhysicsSim):
         self_collision: bool = True,
         rigid_upper_body: bool = True,
         max_base_speed: float = 10.0,
-        camera_distance: float = 2.0,
-        camera_pitch: float = -35.0,
     ):
         for key, value in {
             "lateral_friction": lateral_friction,
@@ -169,7 +168,6 @@ class PybulletSim(PhysicsSim):
         self.self_collision = bool(self_collision)
         self.rigid_upper_body = bool(rigid_upper_body)
         self.max_base_speed = float(max_base_speed)
-        self.camera_distance, self.camera_pitch = float(camera_distance), float(camera_pitch)
         self.client = -1
         self._urdf_path: str | None = None
         self._finalizer: weakref.finalize | None = None
@@ -178,6 +176,7 @@ class PybulletSim(PhysicsSim):
         self._placed: list[tuple[str, float, list[float]]] = []  # this episode's (kind, radius, position)
         self._stand_ins: list[int] = []  # render-only visual bodies of this episode's obstacles
         self._goal_marker = -1
+        self._footstep_markers: list[int] = []  # render-only boxes: right, left commanded footstep
         self._scene: Scene | None = None
         # Randomization (apply_physics_randomization): scales in force, per-tick external wrench.
         self._scales = {"kp": 1.0, "damping": 1.0, "torque": 1.0}
@@ -272,6 +271,7 @@ class PybulletSim(PhysicsSim):
         self._placed = []
         self._stand_ins = []
         self._goal_marker = -1
+        self._footstep_markers = []
         # Nominal masses and inertia diagonals of every robot link (-1: the torso), for randomization.
         self.nominal_dynamics = {
             link: (info[0], tuple(info[2]))
@@ -447,7 +447,7 @@ class PybulletSim(PhysicsSim):
                     p.GEOM_CYLINDER,
                     radius=radius,
                     length=self.obstacle_height,
-                    rgbaColor=[0.8, 0.25, 0.2, 1],
+                    rgbaColor=[0.55, 0.35, 0.2, 1],  # the MuJoCo backends' obstacle colour
                     physicsClientId=c,
                 )
             self._stand_ins.append(p.createMultiBody(0, -1, visual, position, physicsClientId=c))
@@ -724,42 +724,68 @@ class PybulletSim(PhysicsSim):
         return max(abs(v) for v in pos) < 50.0
 
     # -- rendering ------------------------------------------------------------------------
-    def render(self, overlay: RenderOverlay | None, width: int, height: int) -> np.ndarray | None:
+    def render(
+        self,
+        overlay: RenderOverlay | None,
+        width: int,
+        height: int,
+        camera: TrackingCamera | None = None,
+        base: Pose2D | None = None,
+    ) -> np.ndarray | None:
         c = self.client
         self._draw_stand_ins()
+        camera, base = self.camera_view(camera, base)
         if overlay is not None:
-            if self._goal_marker < 0:
-                disc = p.createVisualShape(
-                    p.GEOM_CYLINDER, radius=0.12, length=0.01, rgbaColor=[1.0, 0.85, 0.0, 1], physicsClientId=c
-                )
-                self._goal_marker = p.createMultiBody(0, -1, disc, [0, 0, 0.005], physicsClientId=c)
-                arrow = p.createVisualShape(
-                    p.GEOM_BOX, halfExtents=[0.12, 0.02, 0.006], rgbaColor=[0.9, 0.4, 0.0, 1], physicsClientId=c
-                )
-                self._goal_arrow = p.createMultiBody(0, -1, arrow, [0, 0, 0.012], physicsClientId=c)
-            g = overlay.goal
-            orn = p.getQuaternionFromEuler([0, 0, g.theta])
-            p.resetBasePositionAndOrientation(self._goal_marker, [g.x, g.y, 0.005], orn, physicsClientId=c)
-            p.resetBasePositionAndOrientation(
-                self._goal_arrow,
-                [g.x + 0.1 * math.cos(g.theta), g.y + 0.1 * math.sin(g.theta), 0.012],
-                orn,
-                physicsClientId=c,
-            )
-        position, rotation = self.base_pose()
-        target = [float(position[0]), float(position[1]), 0.25]
-        if overlay is not None:  # frame the robot and the goal
-            target = [0.5 * (target[0] + overlay.goal.x), 0.5 * (target[1] + overlay.goal.y), 0.25]
-        spread = 0.0 if overlay is None else math.hypot(overlay.goal.x - position[0], overlay.goal.y - position[1])
-        yaw = math.degrees(math.atan2(rotation[1, 0], rotation[0, 0])) - 90.0
-        view = p.computeViewMatrixFromYawPitchRoll(
-            target, self.camera_distance + 0.8 * spread, yaw, self.camera_pitch, 0, 2, physicsClientId=c
-        )
-        proj = p.computeProjectionMatrixFOV(60, width / height, 0.05, 50.0, physicsClientId=c)
+            self._draw_overlay(overlay)
+        eye, target = camera.eye(base)
+        view = p.computeViewMatrix(eye.tolist(), target.tolist(), [0.0, 0.0, 1.0], physicsClientId=c)
+        proj = p.computeProjectionMatrixFOV(camera.fov, width / height, 0.05, 50.0, physicsClientId=c)
         _, _, rgba, _, _ = p.getCameraImage(
-            width, height, view, proj, renderer=p.ER_TINY_RENDERER, flags=p.ER_NO_SEGMENTATION_MASK, physicsClientId=c
+            width,
+            height,
+            view,
+            proj,
+            shadow=int(camera.shadows),
+            renderer=p.ER_TINY_RENDERER,
+            flags=p.ER_NO_SEGMENTATION_MASK,
+            physicsClientId=c,
         )
-        return np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[:, :, :3].copy()
+        frame = np.asarray(rgba, dtype=np.uint8).reshape(height, width, 4)[:, :, :3].copy()
+        if overlay is not None and overlay.ray_endpoints is not None and overlay.believed is not None:
+            frame = _draw_rays(frame, overlay, camera, base)
+        return frame
+
+    def _draw_overlay(self, overlay: RenderOverlay) -> None:
+        """The goal disc and heading arrow and the commanded footsteps as visual-only bodies (no
+        collision shape), made at the first frame and moved each frame; the MuJoCo backends' colours."""
+        c = self.client
+        if self._goal_marker < 0:
+            disc = p.createVisualShape(p.GEOM_CYLINDER, radius=0.12, length=0.01, physicsClientId=c)
+            self._goal_marker = p.createMultiBody(0, -1, disc, [0, 0, 0.005], physicsClientId=c)
+            arrow = p.createVisualShape(p.GEOM_BOX, halfExtents=[0.15, 0.02, 0.006], physicsClientId=c)
+            self._goal_arrow = p.createMultiBody(0, -1, arrow, [0, 0, 0.012], physicsClientId=c)
+        g = overlay.goal
+        rgba = [0.1, 0.8, 0.1, 1.0] if overlay.reached else [0.9, 0.1, 0.1, 1.0]
+        orn = p.getQuaternionFromEuler([0, 0, g.theta])
+        for body, position in (
+            (self._goal_marker, [g.x, g.y, 0.005]),
+            (self._goal_arrow, [g.x + 0.15 * math.cos(g.theta), g.y + 0.15 * math.sin(g.theta), 0.012]),
+        ):
+            p.resetBasePositionAndOrientation(body, position, orn, physicsClientId=c)
+            p.changeVisualShape(body, -1, rgbaColor=rgba, physicsClientId=c)
+        if overlay.foot_size is None or not overlay.footsteps:
+            for body in self._footstep_markers:
+                p.resetBasePositionAndOrientation(body, [0, 0, -100.0], [0, 0, 0, 1], physicsClientId=c)
+            return
+        if not self._footstep_markers:
+            half = [0.5 * overlay.foot_size[0], 0.5 * overlay.foot_size[1], 0.004]
+            for colour in ([0.85, 0.2, 0.2, 0.6], [0.15, 0.65, 0.25, 0.6]):  # right, left
+                box = p.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=colour, physicsClientId=c)
+                self._footstep_markers.append(p.createMultiBody(0, -1, box, [0, 0, -100.0], physicsClientId=c))
+        for body, foot in zip(self._footstep_markers, overlay.footsteps):
+            p.resetBasePositionAndOrientation(
+                body, [foot.x, foot.y, 0.006], p.getQuaternionFromEuler([0, 0, foot.theta]), physicsClientId=c
+            )
 
     _WORLD_ATTRS = (
         "client",
@@ -777,6 +803,7 @@ class PybulletSim(PhysicsSim):
         "_pool_kind",
         "_goal_marker",
         "_goal_arrow",
+        "_footstep_markers",
         "nominal_dynamics",
     )
 
@@ -798,6 +825,35 @@ class PybulletSim(PhysicsSim):
             world = None
         world_pool.release(self.client, self._urdf_path, self._key if world is not None else None, world)
         self.client = -1
+
+
+def _draw_rays(frame: np.ndarray, overlay: RenderOverlay, camera: TrackingCamera, base: Pose2D) -> np.ndarray:
+    """The rays drawn over ``frame`` (TinyRenderer draws no lines): each segment from the
+    believed pose, 2 cm above the floor, projected with the camera model (the one the frame was
+    rendered from; ``tests/test_video_camera.py`` checks that the two agree), cut where it would
+    pass behind the camera."""
+    from PIL import Image, ImageDraw
+
+    eye, target = camera.eye(base)
+    forward = (target - eye) / np.linalg.norm(target - eye)
+    assert overlay.believed is not None and overlay.ray_endpoints is not None
+    start = np.array([overlay.believed.x, overlay.believed.y, 0.02])
+    ends = np.column_stack([np.asarray(overlay.ray_endpoints, dtype=float), np.full(len(overlay.ray_endpoints), 0.02)])
+    near = 0.1  # [m] in front of the camera
+    d0 = float((start - eye) @ forward)
+    if d0 <= near:
+        return frame
+    d1 = (ends - eye) @ forward
+    cut = np.where(d1 < near, (d0 - near) / np.maximum(d0 - d1, 1e-12), 1.0)[:, None]
+    ends = start + cut * (ends - start)
+    height, width = frame.shape[:2]
+    pixels = camera.project(np.vstack([start, ends]), base, width, height)
+    image = Image.fromarray(frame)
+    draw = ImageDraw.Draw(image)
+    origin = tuple(pixels[0])
+    for end in pixels[1:]:
+        draw.line([origin, tuple(end)], fill=(255, 204, 0), width=1)
+    return np.asarray(image).copy()
 
 
 class PybulletBackend(Physics3DBackend):

@@ -5,9 +5,9 @@ dm_control's own idiom, driven by the shared 3D driver.
   (:func:`footsim.robots.mjcf.build_mjcf`, floor and light included).  The backend edits that
   tree with the ``mjcf`` API before compiling: integrator and offscreen buffer size, the model
   options it shares with the MuJoCo backend (torsional friction on the feet, servo kp and
-  damping scales, servo_kv — validated by the same helpers), a tracking camera on the torso, and the
-  obstacle pool (:data:`~footsim.backends.mujoco_family.engine.N_CYLINDERS` cylinders and a sphere for
-  the ball, added to the world body).
+  damping scales, servo_kv — validated by the same helpers), and the obstacle pool
+  (:data:`~footsim.backends.mujoco_family.engine.N_CYLINDERS` cylinders and a sphere for the
+  ball, added to the world body).
 * **Physics** — ``mjcf.Physics.from_mjcf_model``.  Everything is addressed through
   ``physics.bind(element)`` of the mjcf elements found by name (the bindings are made once at
   :meth:`DmControlSim.build`); a new episode moves / resizes / parks the pool geoms through
@@ -15,11 +15,11 @@ dm_control's own idiom, driven by the shared 3D driver.
 * **Faults** — dm_control raises ``PhysicsError`` when a step raises a MuJoCo warning
   (bad qacc / qpos / qvel, …); the sim records it and reports it as ``sim_error``, as it does
   for the MuJoCo backend's fatal warning counters and a non-finite state.
-* **Rendering** — ``physics.render(height, width, camera_id="track")`` (EGL headless, opened at
-  the first frame rather than when dm_control is imported: ``_defer_headless_gl_backend``) from a
-  camera that follows the torso with the MuJoCo backend's framing; the goal marker (disc and
-  heading arrow), believed pose and rays are drawn by a ``scene_callback`` with the MuJoCo
-  backend's overlay code.
+* **Rendering** — a dm_control ``MovableCamera`` (EGL headless, opened at the first frame rather
+  than when dm_control is imported: ``_defer_headless_gl_backend``) posed each frame as the shared
+  tracking camera (``backend.camera``, :class:`~footsim.backends.base.TrackingCamera`), the
+  MuJoCo backend's free-camera pose; the overlay (goal disc and heading arrow, believed pose,
+  commanded footsteps, rays) is drawn by its ``scene_callback`` with the MuJoCo backend's code.
 
 Physics is MuJoCo in both backends, so ``conf/walk/dm_control.yaml`` starts from the MuJoCo
 walk; the one difference in the model is the MJCF's float round trip through XML text.
@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import importlib
 import logging
-import math
 import os
 import sys
 from typing import Any
@@ -83,15 +82,13 @@ _defer_headless_gl_backend()
 
 # The imports below come after the deferral: dm_control's GL backend is chosen when it is imported.
 from dm_control import mjcf  # noqa: E402 - a missing package: backend_class names the extra to install
+from dm_control.mujoco.engine import MovableCamera  # noqa: E402
 from dm_control.rl.control import PhysicsError  # noqa: E402
 
-from footsim.backends.base import RenderOverlay  # noqa: E402
+from footsim.backends.base import RenderOverlay, TrackingCamera  # noqa: E402
 from footsim.backends.control import ServoFeedForward  # noqa: E402
 from footsim.backends.mujoco_family.engine import (  # noqa: E402
     BALL_RGBA,
-    CAMERA_AZIMUTH,
-    CAMERA_DISTANCE,
-    CAMERA_ELEVATION,
     N_CYLINDERS,
     OBSTACLE_BIT,
     OBSTACLE_RGBA,
@@ -105,23 +102,11 @@ from footsim.backends.mujoco_family.engine import (  # noqa: E402
     require_rendering,
 )
 from footsim.backends.physics3d import Physics3DBackend, SimState, quat_to_matrix  # noqa: E402
+from footsim.geometry import Pose2D  # noqa: E402
 from footsim.robots.mjcf import FREE_JOINT, build_mjcf, sole_site  # noqa: E402
 from footsim.robots.spec import RobotSpec  # noqa: E402
 from footsim.scene import Scene  # noqa: E402
 from footsim.walk.ik import LEG_JOINT_NAMES  # noqa: E402
-
-CAMERA = "track"  # name of the render camera (on the torso)
-
-
-def _camera_frame() -> tuple[np.ndarray, np.ndarray]:
-    """Offset from the torso [m] and ``xyaxes`` of a camera framed like the MuJoCo backend's
-    tracking camera (distance, elevation, azimuth about the torso)."""
-    az, el = math.radians(CAMERA_AZIMUTH), math.radians(CAMERA_ELEVATION)
-    forward = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
-    right = np.cross(forward, [0.0, 0.0, 1.0])
-    right /= np.linalg.norm(right)
-    up = np.cross(right, forward)
-    return -CAMERA_DISTANCE * forward, np.concatenate([right, up])
 
 
 class DmControlSim(MujocoEngineSim):
@@ -131,6 +116,8 @@ class DmControlSim(MujocoEngineSim):
     physics: Any = None
     engine_label = "dm_control"
     _error: str | None = None
+    _view: Any = None  # the dm_control MovableCamera frames come from (made at the first frame)
+    _overlay: RenderOverlay | None = None
 
     # -- world ------------------------------------------------------------------------------
     def build(self, robot: RobotSpec, physics_dt: float) -> None:
@@ -142,11 +129,6 @@ class DmControlSim(MujocoEngineSim):
         model.option.integrator = self.integrator
         offscreen = model.visual.get_children("global")
         offscreen.offwidth = offscreen.offheight = self.max_render_size
-
-        torso = model.find("body", robot.base_link)
-        offset, xyaxes = _camera_frame()
-        com = np.asarray(robot.link(robot.base_link).inertial.com, dtype=float)
-        torso.add("camera", name=CAMERA, mode="track", pos=com + offset, xyaxes=xyaxes)
 
         # One body per obstacle (see footsim.backends.mujoco_family.engine.POOL_MAX_RADIUS).
         names = [f"obstacle{i}" for i in range(N_CYLINDERS)] + ["ball"]
@@ -278,13 +260,40 @@ class DmControlSim(MujocoEngineSim):
         return self._error if self._error is not None else super().sim_error()
 
     # -- rendering --------------------------------------------------------------------------
-    def render(self, overlay: RenderOverlay | None, width: int, height: int) -> np.ndarray | None:
+    def render(
+        self,
+        overlay: RenderOverlay | None,
+        width: int,
+        height: int,
+        camera: TrackingCamera | None = None,
+        base: Pose2D | None = None,
+    ) -> np.ndarray | None:
         require_rendering()
+        camera, base = self.camera_view(camera, base)
         width, height = min(int(width), self.max_render_size), min(int(height), self.max_render_size)
-        callback = None if overlay is None else (lambda physics, scene: draw_overlay(scene, overlay))
-        return np.array(self.physics.render(height=height, width=width, camera_id=CAMERA, scene_callback=callback))
+        view = self._view
+        if view is None or (view.width, view.height) != (width, height):
+            self._free_view()
+            view = self._view = MovableCamera(
+                self.physics, height=height, width=width, scene_callback=self._draw_overlay
+            )
+        self._overlay = overlay
+        lookat, distance, azimuth, elevation = camera.view(base)
+        self.physics.model.vis.global_.fovy = camera.fov  # the free camera's field of view (visual only)
+        view.set_pose(lookat, distance, azimuth, elevation)
+        return np.array(view.render(render_flag_overrides={"shadow": camera.shadows}))
+
+    def _draw_overlay(self, physics, scene) -> None:
+        if self._overlay is not None:
+            draw_overlay(scene, self._overlay)
+
+    def _free_view(self) -> None:
+        if self._view is not None:
+            self._view._scene.free()  # its mjvScene (dm_control's Physics.render frees it the same way)
+            self._view = None
 
     def close(self) -> None:
+        self._free_view()
         if self.physics is not None:
             self.physics.free()  # rendering contexts and the native model / data
         self.physics = self.mjcf_model = None

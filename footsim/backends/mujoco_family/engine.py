@@ -14,10 +14,11 @@ from typing import Any
 
 import numpy as np
 
-from footsim.backends.base import RenderOverlay
+from footsim.backends.base import RenderOverlay, TrackingCamera
 from footsim.backends.control import ServoFeedForward, all_finite
 from footsim.backends.mujoco_family.randomization import MujocoRandomization
 from footsim.backends.physics3d import PhysicsSim, levelling_rotation
+from footsim.geometry import Pose2D
 from footsim.robots.mjcf import CONTACT_FRICTION, import_mujoco, touch_sensor
 from footsim.robots.spec import RobotSpec
 from footsim.walk.ik import LEG_JOINT_NAMES
@@ -55,8 +56,19 @@ FATAL_WARNINGS = (
     "mjWARN_CNSTRFULL",
     "mjWARN_INERTIA",
 )
-#: The render camera: tracks the torso from this distance [m], elevation and azimuth [deg].
-CAMERA_DISTANCE, CAMERA_ELEVATION, CAMERA_AZIMUTH = 2.5, -30.0, -150.0
+#: Footstep markers of the overlay: right foot, left foot (the 2D drawing's colours).
+FOOTSTEP_RGBA = ([0.85, 0.2, 0.2, 0.6], [0.15, 0.65, 0.25, 0.6])
+
+
+def set_free_camera(cam, model, camera: TrackingCamera, base: Pose2D) -> None:
+    """Point the ``mjvCamera`` ``cam`` as ``camera`` over the base's planar pose ``base``: a free
+    camera (MuJoCo's lookat / distance / azimuth / elevation are the camera's :meth:`view`), and
+    the model's free-camera field of view (``vis.global_.fovy``, a visual setting only)."""
+    lookat, distance, azimuth, elevation = camera.view(base)
+    cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+    cam.lookat[:] = lookat
+    cam.distance, cam.azimuth, cam.elevation = distance, azimuth, elevation
+    model.vis.global_.fovy = camera.fov
 
 
 # -- helpers shared with the dm-control backend (same engine, same model options) ----------
@@ -172,7 +184,8 @@ def _scene_arrow(scene, xy, theta, length, width, rgba) -> None:
 
 
 def draw_overlay(scene, overlay: RenderOverlay) -> None:
-    """Draw the task overlay into an ``mjvScene``: goal disc + heading arrow, believed pose, rays."""
+    """Draw the task overlay into an ``mjvScene``: goal disc + heading arrow, believed pose, the
+    commanded footsteps, rays."""
     goal = overlay.goal
     colour = [0.1, 0.8, 0.1, 0.8] if overlay.reached else [0.9, 0.1, 0.1, 0.8]
     eye = np.eye(3)
@@ -181,6 +194,12 @@ def draw_overlay(scene, overlay: RenderOverlay) -> None:
     if overlay.believed is not None:
         b = overlay.believed
         _scene_arrow(scene, (b.x, b.y), b.theta, 0.25, 0.015, [0.2, 0.4, 1.0, 0.8])
+    if overlay.foot_size is not None:
+        half = [0.5 * overlay.foot_size[0], 0.5 * overlay.foot_size[1], 0.004]
+        for foot, rgba in zip(overlay.footsteps, FOOTSTEP_RGBA):
+            c, s = math.cos(foot.theta), math.sin(foot.theta)
+            turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+            _add_scene_geom(scene, mujoco.mjtGeom.mjGEOM_BOX, half, [foot.x, foot.y, 0.006], turn, rgba)
     if overlay.ray_endpoints is not None and overlay.believed is not None:
         start = np.array([overlay.believed.x, overlay.believed.y, 0.02])
         for end in np.asarray(overlay.ray_endpoints, float):

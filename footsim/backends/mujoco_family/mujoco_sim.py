@@ -18,13 +18,10 @@ from typing import Any
 
 import numpy as np
 
-from footsim.backends.base import RenderOverlay
+from footsim.backends.base import RenderOverlay, TrackingCamera
 from footsim.backends.control import ServoFeedForward
 from footsim.backends.mujoco_family.engine import (
     BALL_RGBA,
-    CAMERA_AZIMUTH,
-    CAMERA_DISTANCE,
-    CAMERA_ELEVATION,
     N_CYLINDERS,
     OBSTACLE_BIT,
     OBSTACLE_RGBA,
@@ -37,8 +34,10 @@ from footsim.backends.mujoco_family.engine import (
     obstacle_geometry,
     pool_compile_size,
     require_rendering,
+    set_free_camera,
 )
 from footsim.backends.physics3d import Physics3DBackend, SimState
+from footsim.geometry import Pose2D
 from footsim.robots.mjcf import FREE_JOINT, build_mjcf
 from footsim.robots.spec import RobotSpec
 from footsim.scene import Scene
@@ -193,21 +192,26 @@ class MujocoSim(MujocoEngineSim):
         return q[self._free_q : self._free_q + 3].copy(), self._rot.reshape(3, 3).copy()
 
     # -- rendering --------------------------------------------------------------------------
-    def render(self, overlay: RenderOverlay | None, width: int, height: int) -> np.ndarray | None:
+    def render(
+        self,
+        overlay: RenderOverlay | None,
+        width: int,
+        height: int,
+        camera: TrackingCamera | None = None,
+        base: Pose2D | None = None,
+    ) -> np.ndarray | None:
         require_rendering()
+        camera, base = self.camera_view(camera, base)
         width, height = min(int(width), self.max_render_size), min(int(height), self.max_render_size)
         if self._renderer is None or (self._renderer.width, self._renderer.height) != (width, height):
             if self._renderer is not None:
                 self._renderer.close()
             self._renderer = mujoco.Renderer(self.model, height=height, width=width)
             self._camera = mujoco.MjvCamera()
-            self._camera.type = mujoco.mjtCamera.mjCAMERA_TRACKING
-            self._camera.trackbodyid = self.torso
-            self._camera.distance = CAMERA_DISTANCE
-            self._camera.elevation = CAMERA_ELEVATION
-            self._camera.azimuth = CAMERA_AZIMUTH  # in front-left of a robot facing +x, looking back at it
         renderer = self._renderer
+        set_free_camera(self._camera, self.model, camera, base)
         renderer.update_scene(self.data, camera=self._camera)
+        renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = camera.shadows
         if overlay is not None:
             draw_overlay(renderer.scene, overlay)
         return renderer.render().copy()

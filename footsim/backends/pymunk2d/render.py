@@ -1,7 +1,8 @@
 """Top-down drawing of an episode like thesis Fig. 5.1 (PIL, no display needed).
 
-Left footsteps green, right red, navigation poses as black arrows, rays olive, obstacles blue,
-the ball orange, the goal cyan; a disc in the bottom-right corner is green once the goal is
+Left footsteps green, right red (the commanded put-downs of the current double step filled
+pale in the same colours), navigation poses as black arrows, rays olive, obstacles blue, the
+ball orange, the goal cyan; a disc in the bottom-right corner is green once the goal is
 reached, red before; the black bar beside it is 1 m long.
 """
 
@@ -61,6 +62,10 @@ def draw_scene(scene, footsteps, nav_history, robot, overlay=None, size: int = S
         x1, y1 = to_px(b.x + b.r, b.y - b.r)
         draw.ellipse([x0, y0, x1, y1], fill=(240, 150, 30))
     hl, hw = 0.5 * robot.foot_length, 0.5 * robot.foot_width
+    corners_of = ((hl, hw), (-hl, hw), (-hl, -hw), (hl, -hw))
+    if overlay is not None:  # the commanded put-downs of the current double step, filled pale
+        for foot, fill in zip(overlay.footsteps, ((250, 200, 200), (200, 235, 205))):  # right, left
+            draw.polygon([to_px(*foot.transform_point(dx, dy)) for dx, dy in corners_of], fill=fill)
     for side, foot in footsteps:
         corners = [foot.transform_point(dx, dy) for dx, dy in ((hl, hw), (-hl, hw), (-hl, -hw), (hl, -hw))]
         colour = (40, 170, 60) if side is Side.LEFT else (210, 50, 50)
