@@ -49,6 +49,7 @@ class PymunkBackendConfig:
     execution_model: Optional[str] = MISSING
     execution_noise: bool = MISSING
     execution_falls: bool = MISSING
+    fall_model: Optional[str] = MISSING
 
 
 @dataclass

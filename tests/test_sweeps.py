@@ -399,7 +399,9 @@ def test_hpo_sweep_of_footsim_train_completes_and_resumes(tmp_path):
 
 
 # -- presets that extend another preset of their group --------------------------------------------
-@pytest.mark.parametrize("name, base", [("velocity_mujoco", "velocity"), ("footstep_mujoco", "footstep")])
+@pytest.mark.parametrize(
+    "name, base", [("velocity_mujoco", "velocity"), ("velocity_v1", "velocity"), ("footstep_mujoco", "footstep")]
+)
 def test_group_defaults_match_hydra_composition(name, base):
     """``load_preset`` (used outside Hydra) must read a ``defaults: [base, _self_]`` preset the way
     Hydra composes it: the base's values with the file's overrides on top."""

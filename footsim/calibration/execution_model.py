@@ -18,6 +18,9 @@ the predicted displacement (``features=dx,dy,dtheta`` by default; ``abs_dx, abs_
 can be added) with intercept and residual σ, and the fall probability per double step as a
 logistic regression on the absolute action values.  ``backend=pymunk backend.execution_model=FILE``
 makes the 2D backend execute through it (:class:`ExecutionModel`, ``footsim.backends.pymunk2d``).
+``backend.fall_model=PATH`` gives that backend a fall model from a capability map instead
+(:class:`CapabilityFallModel`: each commanded double step falls with the rate of the map's nearest
+cell).
 
 :func:`footsim.calibration.walkcheck.execution_model_consistency` (``footsim-calibrate
 compare=FILE.json``) runs the walkcheck sequences on
@@ -143,6 +146,67 @@ class ExecutionModel:
         fc, fb = self.fall
         z = float(fc @ np.abs(np.asarray(action, dtype=float)) + fb)
         return 1.0 / (1.0 + math.exp(-z)) if z > -700 else 0.0
+
+
+class CapabilityFallModel:
+    """Fall probability of a commanded double step from a capability map (``footsim-capability``'s
+    ``capability.csv``): ``backend=pymunk backend.fall_model=PATH``.
+
+    A commanded double step, as its unit action (6 values in [-1, 1]: the step divided by the
+    robot's step limits, right foot then left, :data:`footsim.calibration.capability.ACTION_COLUMNS`),
+    takes the fall rate of the map's **nearest cell** (squared Euclidean distance in that unit
+    space; on a tie the cell written first).  Nearest rather than interpolated because
+
+    * it works on every grid the map tool writes (``same:N``, ``full:N``, axis lists) without
+      assuming a regular 6-D lattice, which the default ``same:5`` map is not (both feet take the
+      same step: a 3-D subset of the box);
+    * the value used is a measured one: without randomization the simulators are deterministic
+      and a cell's rate is 0 or 1, so interpolating would invent rates between cells that none of
+      the trials showed; and a cell with rate 0 can never make the robot fall;
+    * it is the lookup of the footstep planner's ``controller.stable_region`` (the same map, the
+      same cells), so the planner and the calibrated 2D backend agree on what is stable.
+
+    For a ``same:N`` map the nearest cell of a double step is, per axis, the level nearest the
+    mean of its two feet's values (the distance to a cell ``(c, c)`` is
+    ``|r - c|² + |l - c|² = 2 |(r + l)/2 - c|² + const``).
+    """
+
+    def __init__(self, actions, fall_rates, source: str = "<arrays>"):
+        actions = np.asarray(actions, dtype=float)
+        fall_rates = np.asarray(fall_rates, dtype=float)
+        where = f"fall model {source}"
+        if actions.ndim != 2 or actions.shape[1] != 6 or actions.shape[0] == 0:
+            raise ValueError(f"{where}: needs at least one cell of 6 unit action values, got shape {actions.shape}")
+        if fall_rates.shape != (actions.shape[0],):
+            raise ValueError(f"{where}: one fall rate per cell needed, got {fall_rates.shape} for {actions.shape[0]}")
+        if not np.isfinite(actions).all():
+            raise ValueError(f"{where}: cell actions must be finite")
+        bad = np.flatnonzero(~(np.isfinite(fall_rates) & (fall_rates >= 0.0) & (fall_rates <= 1.0)))
+        if bad.size:
+            raise ValueError(
+                f"{where}: fall_rate of cell {actions[bad[0]].tolist()} is {float(fall_rates[bad[0]])!r} "
+                "(must be in [0, 1]; a cell without trials has none)"
+            )
+        self.actions, self.fall_rates, self.source = actions, fall_rates, source
+
+    @classmethod
+    def load(cls, path) -> CapabilityFallModel:
+        """A capability map's CSV (or the directory holding ``capability.csv``)."""
+        from footsim.calibration.capability import read_map  # capability imports the backends: not at import time
+
+        cells = read_map(Path(path).expanduser())
+        if not cells:
+            raise ValueError(f"fall model {path}: the capability map has no cells")
+        return cls([c.action for c in cells], [c.fall_rate for c in cells], str(path))
+
+    def cell_index(self, action) -> int:
+        """Row of the map's nearest cell to the unit action (6 values)."""
+        a = np.asarray(action, dtype=float).reshape(6)
+        return int(np.argmin(((self.actions - a) ** 2).sum(axis=1)))
+
+    def probability(self, action) -> float:
+        """The fall rate of the nearest cell."""
+        return float(self.fall_rates[self.cell_index(action)])
 
 
 def _draw(rng: np.random.Generator, scale: float) -> np.ndarray:

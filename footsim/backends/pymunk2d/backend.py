@@ -18,6 +18,11 @@ the closest obstacle ... below a defined threshold"): the navigation pose at eac
 than ``collision_distance`` to an obstacle's or the ball's edge.  The thesis gives no threshold;
 the default 0.1 m is about the trunk's half width.  It ignores the feet, so it is more lenient than
 the footprint check (the feet reach 0.14 m sideways and 0.08 m forward of the navigation pose).
+
+Calibrated 2D: ``execution_model`` (``footsim-calibrate``) moves the landing to where a 3D backend
+puts it; ``fall_model`` (a ``footsim-capability`` map) makes a commanded double step fall with the
+rate of the map's nearest cell, drawn from the episode rng.  A fall is reported as the 3D driver
+reports one (``max_tilt`` = π/2, the robot lying down); the task's fall term ends the episode.
 """
 
 from __future__ import annotations
@@ -31,7 +36,7 @@ import pymunk
 from footsim.backends.base import Backend, RenderOverlay, StepResult
 from footsim.backends.pymunk2d import collision
 from footsim.backends.pymunk2d.render import draw_scene
-from footsim.calibration.execution_model import ExecutionModel
+from footsim.calibration.execution_model import CapabilityFallModel, ExecutionModel
 from footsim.geometry import Pose2D, mean_pose
 from footsim.robots.spec import RobotSpec
 from footsim.scene import Scene, circle_array
@@ -76,7 +81,8 @@ class Pymunk2DBackend(Backend):
     kind = "2d"
     capabilities = frozenset({"footstep_noise_x", "footstep_noise_y", "footstep_noise_theta", "walk_freq_scale"})
     #: ``reset`` may be given an rng that is only created when first drawn from (the env's
-    #: ``DeferredGenerator``): this backend draws only with execution noise or an execution model.
+    #: ``DeferredGenerator``): this backend draws only with execution noise, an execution model or
+    #: a fall model.
     deferred_rng = True
 
     COLLISION_MODELS = ("footprint", "nav_distance")
@@ -88,6 +94,7 @@ class Pymunk2DBackend(Backend):
         execution_model: str | None = None,
         execution_noise: bool = True,
         execution_falls: bool = False,
+        fall_model: str | None = None,
         collision_model: str = "footprint",
         collision_distance: float = 0.1,
         **unused,
@@ -107,6 +114,14 @@ class Pymunk2DBackend(Backend):
         if execution_model:  # commanded -> executed displacement fitted on a 3D backend (footsim-calibrate)
             self.execution_model = ExecutionModel.load(execution_model, noise=bool(execution_noise))
         self.execution_falls = bool(execution_falls)
+        self.fall_model = None
+        if fall_model:  # the capability map of a 3D backend (footsim-capability): falls per commanded double step
+            if self.execution_falls:
+                raise ValueError(
+                    "backend pymunk: backend.fall_model and backend.execution_falls=true are two fall models; "
+                    "choose one (execution_falls: the execution model's logistic fit; fall_model: a capability map)"
+                )
+            self.fall_model = CapabilityFallModel.load(fall_model)
         self.robot = robot
         self.walk = walk
         self.geometry = FootstepGeometry(robot.step_limits, robot.foot_length, robot.foot_width, walk.foot_distance)
@@ -202,8 +217,9 @@ class Pymunk2DBackend(Backend):
                 self._dims,
             )
             after_first, after_second, executed, n_interfered = placed_double_step(left, values)
+            fell = self.fall_model is not None and self._map_falls(double_step)
             return self._result(
-                after_first, after_second, executed, n_interfered, False, values[14], _new(Pose2D, values[15:])
+                after_first, after_second, executed, n_interfered, fell, values[14], _new(Pose2D, values[15:])
             )
         after_first, after_second, executed, n_interfered = self.geometry.execute(
             before, double_step, self._perturb if perturbed else None
@@ -220,6 +236,8 @@ class Pymunk2DBackend(Backend):
             after_first, after_second, fell = self._apply_execution_model(
                 before, after_first, after_second, double_step
             )
+        if self.fall_model is not None:  # drawn after the execution model's noise
+            fell = self._map_falls(double_step)
         return self._result(
             after_first,
             after_second,
@@ -247,7 +265,7 @@ class Pymunk2DBackend(Backend):
         result = StepResult(
             nav, self._duration, after_second, executed, collided, None, {"foot_interference": n_interfered}
         )
-        if fell:  # the execution model's fall: the tilt of a robot lying on the ground, as the 3D driver reports it
+        if fell:  # a fall model's fall: the tilt of a robot lying on the ground, as the 3D driver reports it
             result.max_tilt = math.pi / 2
         return result
 
@@ -273,6 +291,15 @@ class Pymunk2DBackend(Backend):
             action = double_step.as_array() / np.tile(self.robot.step_limits.as_array(), 2)
             fell = bool(self._rng.random() < model.fall_probability(action))
         return moved(after_first, 0.5), moved(after_second, 1.0), fell
+
+    def _map_falls(self, double_step: DoubleStep) -> bool:
+        """Does the commanded double step fall?  One draw from the episode rng against the fall
+        rate of the capability map's nearest cell (:class:`CapabilityFallModel`): a rate 0 never
+        falls (``random() < 0`` is never true), a rate 1 always does."""
+        model = self.fall_model
+        assert model is not None, "called only with a fall model"
+        action = double_step.as_array() / np.tile(self.robot.step_limits.as_array(), 2)
+        return bool(self._rng.random() < model.probability(action))
 
     # -- collisions -----------------------------------------------------------------------
     def _double_step_collides(self, before: FeetState, after_first: FeetState, after_second: FeetState) -> bool:
