@@ -236,3 +236,45 @@ def test_pybullet_motor_max_velocity_must_be_a_bool():
 
     with pytest.raises(ValueError, match=r"backend\.motor_max_velocity must be true or false"):
         PybulletSim(motor_max_velocity="yes")
+
+
+def _first_tick_velocity(spec, error: float, **options) -> float:
+    """The right hip yaw's velocity one Bullet tick after its target moves by ``error`` rad."""
+    pb = pytest.importorskip("pybullet")
+    from footsim.backends.bullet.sim import PybulletSim
+    from footsim.walk.ik import LEG_JOINT_NAMES
+
+    sim = PybulletSim(armature_scale=1.0, solver_iterations=10, **options)
+    sim.build(spec, 1 / 240)
+    try:
+        q = dict(spec.walk_ready)
+        sim.reset_robot(np.array([0.0, 0.0, 0.5]), q)
+        leg = LEG_JOINT_NAMES.index("RHipYaw")
+        for i, name in enumerate(LEG_JOINT_NAMES):
+            sim.state.command[sim.state.leg_ids[i]] = q[name] + (error if i == leg else 0.0)
+        sim.write_command()
+        sim.advance(1)
+        return pb.getJointState(sim.robot_id, sim.leg_indices[leg], physicsClientId=sim.client)[1]
+    finally:
+        sim.close()
+
+
+def test_pybullet_position_gain_is_bullets_velocity_constraint(spec):
+    """``backend.position_gain`` is Bullet's positionGain on every joint: its position motor targets
+    the velocity positionGain / dt · (q* − q) (Bullet's velocity-constraint form, velocityGain 1 from
+    rest), so a 0.01 rad step moves the hip yaw at 0.1 · 240 · 0.01 = 0.24 rad/s after one tick; the
+    servo mapping (position_gain null, scale 1) gives positionGain kp · dt / kd = 45 / 1.7 / 240 and so
+    kp / kd · 0.01 = 0.265 rad/s.  (At much smaller gains the solver's 10 iterations fall short of the
+    target: 0.05 reaches 0.10, not 0.12.)"""
+    assert _first_tick_velocity(spec, 0.01, position_gain=0.1) == pytest.approx(0.1 * 240 * 0.01, rel=0.02)
+    mapped = _first_tick_velocity(spec, 0.01, position_gain=None, position_gain_scale=1.0)
+    assert mapped == pytest.approx(45 / 1.7 * 0.01, rel=0.02)
+
+
+@pytest.mark.parametrize("gain", [0.0, 1.5, float("nan")])
+def test_pybullet_position_gain_out_of_range_is_refused(gain):
+    pytest.importorskip("pybullet")
+    from footsim.backends.bullet.sim import PybulletSim
+
+    with pytest.raises(ValueError, match=r"backend\.position_gain must be in \(0, 1\] or null"):
+        PybulletSim(position_gain=gain)

@@ -21,8 +21,10 @@ damping ``kd`` whose inertia is small against ``kd`` (the overdamped limit) sett
 
     positionGain = position_gain_scale · kp · dt / damping
 
-(Wolfgang legs: kp 42.2, damping 2.17 → time constant kd/kp = 51 ms; dt 0.01 → 0.19 · scale:
-0.73 at the preset's 3.75; Bullet caps it at 1).  Bullet's own joint damping is off
+(Wolfgang's leg servos: kp 45, damping 1.7 → time constant kd/kp = 38 ms; dt 1/240 s → 0.110 ·
+scale; Bullet caps it at 1), unless ``position_gain`` fixes positionGain for every joint: the
+FootstepNav-v1 preset sets Bullet's default 0.1, which the Bit-Bots' PyBullet simulation runs (it
+passes no gain); docs/BACKENDS.md has the measurements.  Bullet's own joint damping is off
 (``_build_world``); the joint's default velocity motor (the URDF friction) is replaced by the
 position motor.
 
@@ -107,6 +109,7 @@ class PybulletSim(PhysicsSim):
         spinning_friction: float = 0.1,
         rolling_friction: float = 0.1,
         position_gain_scale: float = 1.0,
+        position_gain: float | None = None,
         velocity_gain: float = 1.0,
         motor_max_velocity: bool = False,
         solver_iterations: int = 50,
@@ -131,6 +134,8 @@ class PybulletSim(PhysicsSim):
                 raise ValueError(f"backend.{key} must be a non-negative number, got {value!r}")
         if not (math.isfinite(position_gain_scale) and position_gain_scale > 0):
             raise ValueError(f"backend.position_gain_scale must be positive, got {position_gain_scale!r}")
+        if position_gain is not None and not (math.isfinite(position_gain) and 0 < position_gain <= 1):
+            raise ValueError(f"backend.position_gain must be in (0, 1] or null, got {position_gain!r}")
         if int(solver_iterations) < 1:
             raise ValueError(f"backend.solver_iterations must be >= 1, got {solver_iterations!r}")
         if motor not in ("position", "servo"):
@@ -157,6 +162,7 @@ class PybulletSim(PhysicsSim):
         self.spinning_friction = float(spinning_friction)
         self.rolling_friction = float(rolling_friction)
         self.position_gain_scale = float(position_gain_scale)
+        self.position_gain = None if position_gain is None else float(position_gain)
         self.velocity_gain = float(velocity_gain)
         if not isinstance(motor_max_velocity, (bool, np.bool_)):
             raise ValueError(f"backend.motor_max_velocity must be true or false, got {motor_max_velocity!r}")
@@ -191,10 +197,7 @@ class PybulletSim(PhysicsSim):
         text = urdf_xml(robot, self.rigid_upper_body, sole_frames=False)
         self._key = (text, self.self_collision, self.armature_scale)
         # Motor gains per joint (see the module docstring for the mapping).
-        self._gain = {
-            j.name: min(1.0, self.position_gain_scale * j.servo.kp * self.physics_dt / max(j.servo.damping, 1e-6))
-            for j in robot.joints
-        }
+        self._gain = {j.name: min(1.0, self._nominal_gain(j)) for j in robot.joints}
         self._self_collide = {link.name: any(s.self_collision for s in link.shapes) for link in robot.links}
         fd, self._urdf_path = tempfile.mkstemp(prefix=f"footsim_{robot.name}_", suffix=".urdf")
         with os.fdopen(fd, "w") as f:
@@ -584,13 +587,19 @@ class PybulletSim(PhysicsSim):
             step(c)  # positional: Bullet parses keywords µs slower
 
     # -- randomization --------------------------------------------------------------------
+    def _nominal_gain(self, joint) -> float:
+        """A joint's Bullet positionGain before randomization and the cap: ``position_gain`` when
+        set, else the module docstring's mapping of its servo, scale · kp · dt / kd."""
+        if self.position_gain is not None:
+            return self.position_gain
+        return self.position_gain_scale * joint.servo.kp * self.physics_dt / max(joint.servo.damping, 1e-6)
+
     def _motor_gain(self, name: str) -> float:
-        """Bullet position gain of a joint: the module docstring's mapping with the randomized
-        kp and damping (kd) scales, kp·dt/kd, capped at 1."""
+        """Bullet position gain of a joint with the randomized kp and damping (kd) scales
+        (× kp / kd, as the servo mapping would give), capped at 1."""
         if self._scales["kp"] == 1.0 and self._scales["damping"] == 1.0:
             return self._gain[name]
-        j = self.spec.joint(name)
-        raw = self.position_gain_scale * j.servo.kp * self.physics_dt / max(j.servo.damping, 1e-6)
+        raw = self._nominal_gain(self.spec.joint(name))
         return min(1.0, raw * self._scales["kp"] / self._scales["damping"])
 
     def apply_physics_randomization(self, values: dict[str, float]) -> None:
