@@ -65,6 +65,7 @@ conditions:
         (lambda t: t + "    parent: nope\n", r"conditions\.nav\.parent: no condition 'nope'"),
         (lambda t: t + "    walk: fast\n", r"conditions\.nav: unknown key\(s\) \['walk'\]"),
         (lambda t: t.replace("n_scenes: 4", "n_scenes: 0"), r"scene_sets\.heldout\.n_scenes must be > 0"),
+        (lambda t: t + "    n_scenes: all\n", r"conditions\.nav\.n_scenes must be a positive integer"),
         (lambda t: t + "baselines: {velocity: [obst]}\n", r"baselines\.velocity: no condition 'obst'"),
         (
             lambda t: t + "thesis: [{question: q, thesis: t, figures: [{label: s, condition: nav, metric: wins}]}]\n",
@@ -234,3 +235,20 @@ def test_differences_names_each_changed_cell():
     assert rp.differences(old, new, rp.KEY, ("success", "fall")) == ["a/s/policy/x success: 1 -> 0.5"]
     added = [*new, {"condition": "b", "scene_set": "s", "kind": "policy", "name": "y", "success": 1.0, "fall": 0.0}]
     assert rp.differences(old, added, rp.KEY, ("success",))[-1] == "b/s/policy/y: new row"
+
+
+@pytest.mark.slow
+@pytest.mark.xdist_group("tiny_runs")
+def test_reproduce_refuses_a_stale_zoo_entry_before_evaluating(small_study, tmp_path):
+    import shutil
+
+    root, plan = small_study
+    shutil.copytree(root / "zoo", tmp_path / "zoo")
+    config = tmp_path / "zoo" / "nav_s1" / "config.yaml"
+    config.write_text(config.read_text().replace("task:\n", "task:\n  goal_radius: 0.1\n", 1))
+    args = [f"plan={plan}", f"zoo={tmp_path / 'zoo'}", f"out={tmp_path / 'out'}", f"page={tmp_path / 'p.md'}"]
+    with pytest.raises(
+        SystemExit, match=r"zoo entry 'nav_s1' no longer composes .* task: unknown key\(s\) \['goal_radius'\]"
+    ):
+        reproduce_main(args)
+    assert not (tmp_path / "out").exists()

@@ -77,6 +77,7 @@ class Condition:
     train: tuple[str, ...] = ()
     parent: str | None = None
     policies: str | None = None  # evaluate this condition's zoo entries (no training of its own)
+    n_scenes: int | None = None  # at most this many scenes of each set (3D evaluation is slow)
 
     @property
     def source(self) -> str:
@@ -144,7 +145,7 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
         if n <= 0:
             raise PlanError(f"{path}: {where}n_scenes must be > 0, got {n}")
         sets[name] = (seed, n)
-    known = {"title", "backend", "task", "noise", "seeds", "train", "parent", "policies"}
+    known = {"title", "backend", "task", "noise", "seeds", "train", "parent", "policies", "n_scenes"}
     conditions = {}
     for name, spec_ in need(raw, "conditions", dict, "").items():
         where = f"conditions.{name}."
@@ -156,6 +157,9 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
         seeds = tuple(spec_.get("seeds") or ())
         if any(not isinstance(s, int) or isinstance(s, bool) for s in seeds):
             raise PlanError(f"{path}: {where}seeds must be a list of integers, got {spec_.get('seeds')!r}")
+        cap = spec_.get("n_scenes")
+        if cap is not None and (not isinstance(cap, int) or isinstance(cap, bool) or cap <= 0):
+            raise PlanError(f"{path}: {where}n_scenes must be a positive integer, got {cap!r}")
         conditions[name] = Condition(
             name=name,
             title=str(spec_.get("title", name)),
@@ -166,6 +170,7 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
             train=tuple(str(o) for o in spec_.get("train") or ()),
             parent=spec_.get("parent"),
             policies=spec_.get("policies"),
+            n_scenes=cap,
         )
     for cond in conditions.values():
         for key in ("parent", "policies"):
@@ -262,11 +267,15 @@ def plan_jobs(
 ) -> tuple[list[Job], list[str]]:
     """The evaluations of ``conditions`` on ``sets``, and the zoo entries the plan names but the zoo lacks."""
     available = set(zoo.names(root))
+    for cond in conditions:  # a stale entry fails here, naming what changed, before any evaluation
+        for s in plan.seeds(cond):
+            if plan.entry(cond, s) in available:
+                zoo.check_config(plan.entry(cond, s), root)
     jobs, missing = [], []
     for cond in conditions:
         for set_name in sets:
             seed, n = plan.scene_sets[set_name]
-            n = n if n_scenes is None else min(n, n_scenes)
+            n = min([n, *(cap for cap in (cond.n_scenes, n_scenes) if cap is not None)])
             common = dict(backend=cond.backend, task=cond.task, noise=cond.noise, scenes_seed=seed, n_scenes=n)
             for s in plan.seeds(cond):
                 entry = plan.entry(cond, s)
@@ -322,6 +331,13 @@ def evaluate_shard(job: Job, start: int, stop: int, root: str) -> list[dict]:
             env.close()
 
 
+def timed_shard(job: Job, start: int, stop: int, root: str) -> tuple[list[dict], float]:
+    """:func:`evaluate_shard` and its wall time (s)."""
+    started = time.perf_counter()
+    records = evaluate_shard(job, start, stop, root)
+    return records, time.perf_counter() - started
+
+
 def _worker_init() -> None:
     import torch
 
@@ -330,8 +346,9 @@ def _worker_init() -> None:
 
 def run_jobs(
     jobs: Sequence[Job], root: Path, workers: int = 1, shard_size: int = 50, progress: bool = True
-) -> dict[tuple, list[dict]]:
-    """Every job's episode records (scene order), shard by shard, with a progress bar over episodes."""
+) -> tuple[dict[tuple, list[dict]], dict[tuple, float]]:
+    """Every job's episode records (scene order) and worker seconds, shard by shard, with a progress
+    bar over episodes."""
     from tqdm import tqdm
 
     tasks = [
@@ -340,12 +357,14 @@ def run_jobs(
         for start in range(0, job.n_scenes, shard_size)
     ]
     parts: dict[tuple, dict[int, list[dict]]] = {job.key: {} for job in jobs}
+    seconds: dict[tuple, float] = {job.key: 0.0 for job in jobs}
     bar = tqdm(total=sum(j.n_scenes for j in jobs), unit="episode", desc="footsim-reproduce", disable=not progress)
     try:
         if workers <= 1:
             _worker_init()
             for job, start, stop in tasks:
-                parts[job.key][start] = evaluate_shard(job, start, stop, str(root))
+                parts[job.key][start], wall = timed_shard(job, start, stop, str(root))
+                seconds[job.key] += wall
                 bar.update(stop - start)
         else:
             import multiprocessing
@@ -354,16 +373,17 @@ def run_jobs(
             context = multiprocessing.get_context("forkserver")
             with ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_worker_init) as pool:
                 futures = {
-                    pool.submit(evaluate_shard, job, start, stop, str(root)): (job, start, stop)
+                    pool.submit(timed_shard, job, start, stop, str(root)): (job, start, stop)
                     for job, start, stop in tasks
                 }
                 for future in as_completed(futures):
                     job, start, stop = futures[future]
-                    parts[job.key][start] = future.result()
+                    parts[job.key][start], wall = future.result()
+                    seconds[job.key] += wall
                     bar.update(stop - start)
     finally:
         bar.close()
-    return {key: [r for start in sorted(p) for r in p[start]] for key, p in parts.items()}
+    return {key: [r for start in sorted(p) for r in p[start]] for key, p in parts.items()}, seconds
 
 
 def run_row(job: Job, records: list[dict]) -> dict:
@@ -738,7 +758,7 @@ def reproduce(
     if missing:
         print(f"not in the zoo ({len(missing)}), not evaluated: {', '.join(missing)}")
     started = time.time()
-    results = run_jobs(jobs, root, workers, shard_size, progress)
+    results, seconds = run_jobs(jobs, root, workers, shard_size, progress)
     wall = time.time() - started
     new_runs = [run_row(job, results[job.key]) for job in jobs]
 
@@ -756,17 +776,29 @@ def reproduce(
     if plots:
         plot_success_by_seed(out / "success_by_seed.png", plan, runs, cond_rows)
         plot_learning_curves(out / "learning_curves.png", plan, root)
-    data_dir = os.path.relpath(out, page.parent) if page.parent != out else "."
+    data_dir = os.path.relpath(out)  # as the reader types it from where the command ran (the repository top)
     atomic_write_text(page, render_page(plan, runs, cond_rows, root, data_dir))
     episodes = sum(j.n_scenes for j in jobs)
     print(f"evaluated {len(jobs)} policies and baselines ({episodes} episodes) in {wall:.0f} s; {out}, {page}")
+    by_kind: dict[str, float] = {}
+    for job in jobs:
+        label = f"{job.backend} {'policies' if job.kind == 'policy' else job.name + ' baseline'}"
+        by_kind[label] = by_kind.get(label, 0.0) + seconds[job.key]
+    print("worker seconds: " + ", ".join(f"{label} {s:.0f} s" for label, s in sorted(by_kind.items())))
     if changed:
         print(f"{len(changed)} cell(s) differ from the data files there before:")
         for line in changed:
             print(f"  {line}")
     else:
         print("no cell differs from the data files there before" if old_runs else "no data files before: all new")
-    return {"differences": changed, "missing": missing, "jobs": len(jobs), "episodes": episodes, "wall_s": wall}
+    return {
+        "differences": changed,
+        "missing": missing,
+        "jobs": len(jobs),
+        "episodes": episodes,
+        "wall_s": wall,
+        "worker_s": by_kind,
+    }
 
 
 # -- training -----------------------------------------------------------------------------------
