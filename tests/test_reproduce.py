@@ -219,6 +219,11 @@ def test_reproduce_end_to_end(small_study, tmp_path, capsys):
     assert f"nav/standard/policy/nav_s0 success: 0.123 -> {float(runs[4]['success']):.6g}" in report
     assert (out / "runs.csv").read_text() == before  # rows not re-evaluated (held-out, baseline) are kept
 
+    # a quick look on fewer scenes does not replace the full evaluations
+    with pytest.raises(SystemExit, match=r"holds 6-scene evaluations .* n_scenes=3 would replace them"):
+        reproduce_main([*args, "n_scenes=3"])
+    assert (out / "runs.csv").read_text() == before
+
 
 def test_reproduce_refuses_unknown_keys_and_sets(tmp_path):
     with pytest.raises(SystemExit, match="unknown key 'scenes'"):

@@ -755,6 +755,15 @@ def reproduce(
             raise PlanError(f"sets={','.join(sets)}: no scene set {name!r} in the plan ({', '.join(plan.scene_sets)})")
     conditions = select(plan, only)
     jobs, missing = plan_jobs(plan, conditions, root, n_scenes, sets, baselines)
+    old_runs = read_csv(out / RUNS_FILE)
+    recorded = {tuple(r[k] for k in KEY): int(r["n_scenes"]) for r in old_runs}
+    fewer = [j for j in jobs if recorded.get(tuple(str(v) for v in j.key), 0) > j.n_scenes]
+    if fewer:  # a quick look (n_scenes=20) must not replace the full evaluations in the data files
+        j = fewer[0]
+        raise PlanError(
+            f"{out / RUNS_FILE} holds {recorded[j.key]}-scene evaluations ({'/'.join(j.key)} and "
+            f"{len(fewer) - 1} more); n_scenes={j.n_scenes} would replace them: give out=DIR and page=FILE elsewhere"
+        )
     if missing:
         print(f"not in the zoo ({len(missing)}), not evaluated: {', '.join(missing)}")
     started = time.time()
@@ -762,8 +771,7 @@ def reproduce(
     wall = time.time() - started
     new_runs = [run_row(job, results[job.key]) for job in jobs]
 
-    old_runs = read_csv(out / RUNS_FILE)
-    changed = differences(old_runs, new_runs, KEY, METRICS)
+    changed = differences(old_runs, new_runs, KEY, ("n_scenes", *METRICS))
     runs = merge_rows(old_runs, new_runs, KEY)
     old_conds = read_csv(out / CONDITIONS_FILE)
     cond_rows = condition_rows(runs)
