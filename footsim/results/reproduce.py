@@ -675,7 +675,13 @@ def plot_success_by_seed(path: Path, plan: Plan, runs: list[dict], cstats_rows: 
         for j, (controller, cs) in enumerate(plan.baselines.items()):
             brow = stats.get((cond, "baseline", controller))
             if cond in cs and brow is not None:
-                ax.plot([i - 0.2], [_number(brow["mean"])], "x", color=f"C{j + 2}", label=f"{controller} baseline")
+                ax.plot(
+                    [i - 0.15 - 0.1 * j],
+                    [_number(brow["mean"])],
+                    "x",
+                    color=f"C{j + 2}",
+                    label=f"{controller} baseline",
+                )
     handles, labels = ax.get_legend_handles_labels()
     unique = dict(zip(labels, handles))
     ax.legend(unique.values(), unique.keys(), fontsize=7, loc="lower left")
