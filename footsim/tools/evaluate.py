@@ -1,4 +1,4 @@
-"""``footsim-eval run=RUN_DIR | controller=velocity|footstep [overrides]``: evaluate a trained run or a
+"""``footsim-eval run=RUN_DIR|zoo:NAME | controller=velocity|footstep [overrides]``: evaluate a trained run or a
 baseline on a scene set (:mod:`footsim.rl.evaluate`); a Hydra app on ``conf/eval.yaml``.
 
 ``shard=K/N`` evaluates one slice of the scenes; the shards of one evaluation share a directory:
@@ -13,6 +13,7 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from hydra.types import RunMode
 
+from footsim import zoo
 from footsim.config import conf_dir
 from footsim.rl.evaluate import (
     eval_run_config,
@@ -47,7 +48,10 @@ def _main(cfg) -> dict | None:
         return evaluate_baseline(cfg, _out_dir(cfg))
     if cfg.run is None:
         raise SystemExit("footsim-eval: run=RUN_DIR is required (or controller=velocity|footstep for a baseline)")
-    run_dir = Path(cfg.run).expanduser().resolve()
+    try:
+        run_dir = zoo.resolve(cfg.run)  # a path, or zoo:NAME (checked against the current configs)
+    except zoo.ZooError as err:
+        raise SystemExit(f"footsim-eval: run={cfg.run}: {err}") from None
     if cfg.get("backends"):  # the same scenes filmed on several backends, side by side
         evaluate_side_by_side(run_dir, _out_dir(cfg), cfg)
         return None

@@ -1,0 +1,892 @@
+"""``footsim-reproduce``: evaluate every zoo policy of the study plan and the baselines on the plan's
+scene sets, write the data files, regenerate the results page and its plots, and report every cell
+that differs from the data files already there; with ``train=true``, run the plan's trainings.
+
+The study plan (``conf/study/v1.yaml``) names the conditions (backend, task, noise, training seeds
+and the ``footsim-train`` overrides of one seed), the scene sets, the baselines, the page's tables and
+the thesis side by side.  A condition's policies are the zoo entries ``zoo_name`` gives for its seeds
+(``2d_nav_s0`` ...); a seed without an entry is listed as missing, not evaluated.
+
+Data files (``out=``, default ``docs/results/``): ``runs.csv``, one row per evaluation (condition,
+scene set, policy seed or baseline) with its outcome shares and success time and steps;
+``conditions.csv``, per condition, scene set, policy or baseline, and metric: the mean over seeds,
+its 95 % bootstrap interval and the interquartile mean (:mod:`footsim.results.stats`).  Rows of
+conditions left out by ``only=`` are kept as they were.  Plots: ``success_by_seed.png`` and
+``learning_curves.png``.  The page (``page=``) is generated from the data files alone.
+
+Each evaluation is cut into scene shards (``shard_size`` scenes; episode ``i`` keeps scene ``i`` and
+seed ``i``, as in ``footsim-eval shard=K/N``), run by ``jobs`` worker processes, and merged in scene order.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import io
+import math
+import os
+import re
+import shlex
+import subprocess
+import sys
+import time
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from footsim import zoo
+from footsim.results.stats import seed_stats
+from footsim.utils import atomic_save, atomic_write_text
+
+DEFAULT_PLAN = "study/v1.yaml"  # under conf/
+#: Per evaluation: the identity of a row of runs.csv.
+KEY = ("condition", "scene_set", "kind", "name")
+INFO = ("seed", "backend", "task", "noise", "scenes_seed", "n_scenes")
+METRICS = (
+    "success",
+    "timeout",
+    "fall",
+    "collision",
+    "sim_error",
+    "contact",
+    "unsafe",  # share of episodes that fell, collided or touched an obstacle
+    "success_time_mean",
+    "success_steps_mean",
+)
+RUNS_FILE = "runs.csv"
+CONDITIONS_FILE = "conditions.csv"
+STAT_COLUMNS = ("n", "mean", "ci_low", "ci_high", "iqm", "n_undefined")
+
+
+class PlanError(ValueError):
+    """A study plan that cannot be used; the message names the key."""
+
+
+# -- the plan -----------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Condition:
+    name: str
+    title: str
+    backend: str
+    task: str
+    noise: str
+    seeds: tuple[int, ...] = ()
+    train: tuple[str, ...] = ()
+    parent: str | None = None
+    policies: str | None = None  # evaluate this condition's zoo entries (no training of its own)
+    n_scenes: int | None = None  # at most this many scenes of each set (3D evaluation is slow)
+
+    @property
+    def source(self) -> str:
+        """The condition whose zoo entries are evaluated here."""
+        return self.policies or self.name
+
+
+@dataclass(frozen=True)
+class Plan:
+    path: Path
+    name: str
+    zoo_name: str
+    runs_dir: str
+    scene_sets: dict[str, tuple[int, int]]  # name -> (seed, n_scenes)
+    conditions: dict[str, Condition]
+    baselines: dict[str, tuple[str, ...]]
+    tables: tuple[dict, ...]
+    thesis: tuple[dict, ...]
+    raw: dict = field(repr=False, default_factory=dict)
+
+    def entry(self, condition: Condition, seed: int) -> str:
+        return self.zoo_name.format(condition=condition.source, seed=seed)
+
+    def seeds(self, condition: Condition) -> tuple[int, ...]:
+        return self.conditions[condition.source].seeds
+
+
+def plan_path(spec: str | os.PathLike | None) -> Path:
+    from footsim.config import conf_dir
+
+    if spec is None:
+        return conf_dir() / DEFAULT_PLAN
+    path = Path(spec).expanduser()
+    return path if path.is_file() or path.is_absolute() else (conf_dir() / "study" / spec)
+
+
+def load_plan(spec: str | os.PathLike | None = None) -> Plan:
+    """Read and check a study plan; a missing or bad key fails naming it."""
+    from omegaconf import OmegaConf
+
+    path = plan_path(spec)
+    if not path.is_file():
+        raise PlanError(f"study plan {path} not found")
+    try:
+        raw = OmegaConf.to_container(OmegaConf.load(path), resolve=False)
+    except Exception as err:  # a YAML syntax error
+        raise PlanError(f"{path}: not readable as YAML: {err}") from None
+    if not isinstance(raw, dict):
+        raise PlanError(f"{path}: expected a mapping")
+
+    def need(mapping: dict, key: str, kind: type | tuple[type, ...], where: str) -> Any:
+        if key not in mapping:
+            raise PlanError(f"{path}: {where}{key} is missing")
+        value = mapping[key]
+        if not isinstance(value, kind) or isinstance(value, bool) and kind is not bool:
+            raise PlanError(f"{path}: {where}{key} must be {getattr(kind, '__name__', kind)}, got {value!r}")
+        return value
+
+    sets = {}
+    for name, spec_ in need(raw, "scene_sets", dict, "").items():
+        where = f"scene_sets.{name}."
+        if not isinstance(spec_, dict):
+            raise PlanError(f"{path}: scene_sets.{name} must be a mapping with seed and n_scenes")
+        seed, n = need(spec_, "seed", int, where), need(spec_, "n_scenes", int, where)
+        if n <= 0:
+            raise PlanError(f"{path}: {where}n_scenes must be > 0, got {n}")
+        sets[name] = (seed, n)
+    known = {"title", "backend", "task", "noise", "seeds", "train", "parent", "policies", "n_scenes"}
+    conditions = {}
+    for name, spec_ in need(raw, "conditions", dict, "").items():
+        where = f"conditions.{name}."
+        if not isinstance(spec_, dict):
+            raise PlanError(f"{path}: conditions.{name} must be a mapping")
+        unknown = sorted(set(spec_) - known)
+        if unknown:
+            raise PlanError(f"{path}: {where[:-1]}: unknown key(s) {unknown}; valid: {sorted(known)}")
+        seeds = tuple(spec_.get("seeds") or ())
+        if any(not isinstance(s, int) or isinstance(s, bool) for s in seeds):
+            raise PlanError(f"{path}: {where}seeds must be a list of integers, got {spec_.get('seeds')!r}")
+        cap = spec_.get("n_scenes")
+        if cap is not None and (not isinstance(cap, int) or isinstance(cap, bool) or cap <= 0):
+            raise PlanError(f"{path}: {where}n_scenes must be a positive integer, got {cap!r}")
+        conditions[name] = Condition(
+            name=name,
+            title=str(spec_.get("title", name)),
+            backend=need(spec_, "backend", str, where),
+            task=need(spec_, "task", str, where),
+            noise=str(spec_.get("noise", "none")),
+            seeds=seeds,
+            train=tuple(str(o) for o in spec_.get("train") or ()),
+            parent=spec_.get("parent"),
+            policies=spec_.get("policies"),
+            n_scenes=cap,
+        )
+    for cond in conditions.values():
+        for key in ("parent", "policies"):
+            ref = getattr(cond, key)
+            if ref is not None and ref not in conditions:
+                raise PlanError(f"{path}: conditions.{cond.name}.{key}: no condition {ref!r}")
+        if cond.policies is None and not cond.seeds:
+            raise PlanError(f"{path}: conditions.{cond.name}: give seeds (and train) or policies")
+    baselines = {}
+    for controller, conds in (raw.get("baselines") or {}).items():
+        for c in conds:
+            if c not in conditions:
+                raise PlanError(f"{path}: baselines.{controller}: no condition {c!r}")
+        baselines[controller] = tuple(conds)
+    tables = tuple(raw.get("tables") or ())
+    for i, table in enumerate(tables):
+        for c in need(table, "conditions", list, f"tables[{i}]."):
+            if c not in conditions:
+                raise PlanError(f"{path}: tables[{i}].conditions: no condition {c!r}")
+    thesis = tuple(raw.get("thesis") or ())
+    for i, row in enumerate(thesis):
+        for j, fig in enumerate(need(row, "figures", list, f"thesis[{i}].")):
+            where = f"thesis[{i}].figures[{j}]."
+            for key in ("condition", "minus"):
+                if fig.get(key) is not None and fig[key] not in conditions:
+                    raise PlanError(f"{path}: {where}{key}: no condition {fig[key]!r}")
+            if need(fig, "metric", str, where) not in METRICS:
+                raise PlanError(f"{path}: {where}metric: {fig['metric']!r} is not one of {list(METRICS)}")
+            if fig.get("target") is not None:
+                parse_target(fig["target"], f"{path}: {where}target")
+    zoo_name = str(raw.get("zoo_name", "{condition}_s{seed}"))
+    return Plan(
+        path=path,
+        name=str(raw.get("name", path.stem)),
+        zoo_name=zoo_name,
+        runs_dir=str(raw.get("runs_dir", "runs/study")),
+        scene_sets=sets,
+        conditions=conditions,
+        baselines=baselines,
+        tables=tables,
+        thesis=thesis,
+        raw=raw,
+    )
+
+
+def parse_target(text: str, where: str = "target") -> tuple[str, float]:
+    match = re.fullmatch(r"\s*(>=|<=)\s*(-?[0-9.]+)\s*", str(text))
+    if not match:
+        raise PlanError(f'{where}: expected "<op> <number>" with op >= or <=, got {text!r}')
+    return match.group(1), float(match.group(2))
+
+
+def select(plan: Plan, only: str | None) -> list[Condition]:
+    """The conditions ``only`` picks: ``2d`` (pymunk), ``3d`` (the 3D backends), or condition names."""
+    conds = list(plan.conditions.values())
+    if not only:
+        return conds
+    picked: list[Condition] = []
+    for item in (s.strip() for s in only.split(",") if s.strip()):
+        if item == "2d":
+            picked += [c for c in conds if c.backend == "pymunk"]
+        elif item == "3d":
+            picked += [c for c in conds if c.backend != "pymunk"]
+        elif item in plan.conditions:
+            picked.append(plan.conditions[item])
+        else:
+            raise PlanError(f"only={only}: {item!r} is neither 2d, 3d nor a condition ({', '.join(plan.conditions)})")
+    return list(dict.fromkeys(picked))
+
+
+# -- evaluation jobs ----------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Job:
+    """One evaluation: a policy (zoo entry) or a baseline under a condition on a scene set."""
+
+    condition: str
+    scene_set: str
+    kind: str  # "policy" | "baseline"
+    name: str  # zoo entry | controller preset
+    seed: int | None
+    backend: str
+    task: str
+    noise: str
+    scenes_seed: int
+    n_scenes: int
+
+    @property
+    def key(self) -> tuple[str, str, str, str]:
+        return (self.condition, self.scene_set, self.kind, self.name)
+
+
+def plan_jobs(
+    plan: Plan, conditions: Sequence[Condition], root: Path, n_scenes: int | None, sets: Sequence[str], baselines: bool
+) -> tuple[list[Job], list[str]]:
+    """The evaluations of ``conditions`` on ``sets``, and the zoo entries the plan names but the zoo lacks."""
+    available = set(zoo.names(root))
+    for cond in conditions:  # a stale entry fails here, naming what changed, before any evaluation
+        for s in plan.seeds(cond):
+            if plan.entry(cond, s) in available:
+                zoo.check_config(plan.entry(cond, s), root)
+    jobs, missing = [], []
+    for cond in conditions:
+        for set_name in sets:
+            seed, n = plan.scene_sets[set_name]
+            n = min([n, *(cap for cap in (cond.n_scenes, n_scenes) if cap is not None)])
+            common = dict(backend=cond.backend, task=cond.task, noise=cond.noise, scenes_seed=seed, n_scenes=n)
+            for s in plan.seeds(cond):
+                entry = plan.entry(cond, s)
+                if entry not in available:
+                    missing.append(entry)
+                    continue
+                jobs.append(Job(cond.name, set_name, "policy", entry, s, **common))  # type: ignore[arg-type]
+            if baselines:
+                for controller, conds in plan.baselines.items():
+                    if cond.name in conds:
+                        jobs.append(Job(cond.name, set_name, "baseline", controller, None, **common))  # type: ignore[arg-type]
+    return jobs, sorted(set(missing))
+
+
+def _quiet():
+    """Swallow the notes an evaluation prints (e.g. the walk preset on another backend) in a worker."""
+    return contextlib.redirect_stdout(io.StringIO())
+
+
+def evaluate_shard(job: Job, start: int, stop: int, root: str) -> list[dict]:
+    """Episodes ``start..stop-1`` of ``job`` (module level: runs in a worker process)."""
+    from omegaconf import OmegaConf
+
+    from footsim import config as fconf
+    from footsim.env import FootstepEnv, make_env
+    from footsim.planners.controllers import make_controller
+    from footsim.rl.common import LoadedPolicy, load_run_config
+    from footsim.rl.evaluate import PolicyController, eval_run_config, evaluate
+    from footsim.tasks.scenes import sample_scenes
+
+    with _quiet():
+        if job.kind == "policy":
+            run_dir = zoo.entry_dir(job.name, Path(root))
+            saved = load_run_config(run_dir)
+            asked: dict[str, Any] = {}
+            if saved.backend.name != job.backend:
+                asked["backend"] = {"name": job.backend}
+            if saved.task.name != job.task:
+                asked["task"] = job.task
+            if saved.noise.get("name", "none") != job.noise:
+                asked["noise"] = job.noise
+            run_cfg = eval_run_config(run_dir, OmegaConf.create(asked))
+            env = make_env(run_cfg)
+            controller: Any = PolicyController(LoadedPolicy(run_dir))
+        else:
+            env = FootstepEnv(backend=job.backend, task=job.task, noise=job.noise)
+            controller_cfg = fconf.to_plain(fconf.compose("eval", [f"controller={job.name}"]).controller)
+            controller = make_controller(env, controller_cfg)
+        try:
+            scenes = sample_scenes(env.sampler, job.n_scenes, job.scenes_seed)
+            return evaluate(env, controller, scenes, seed=0, progress=False, indices=range(start, stop))
+        finally:
+            env.close()
+
+
+def timed_shard(job: Job, start: int, stop: int, root: str) -> tuple[list[dict], float]:
+    """:func:`evaluate_shard` and its wall time (s)."""
+    started = time.perf_counter()
+    records = evaluate_shard(job, start, stop, root)
+    return records, time.perf_counter() - started
+
+
+def _worker_init() -> None:
+    import torch
+
+    torch.set_num_threads(1)
+
+
+def run_jobs(
+    jobs: Sequence[Job], root: Path, workers: int = 1, shard_size: int = 50, progress: bool = True
+) -> tuple[dict[tuple, list[dict]], dict[tuple, float]]:
+    """Every job's episode records (scene order) and worker seconds, shard by shard, with a progress
+    bar over episodes."""
+    from tqdm import tqdm
+
+    tasks = [
+        (job, start, min(start + shard_size, job.n_scenes))
+        for job in jobs
+        for start in range(0, job.n_scenes, shard_size)
+    ]
+    parts: dict[tuple, dict[int, list[dict]]] = {job.key: {} for job in jobs}
+    seconds: dict[tuple, float] = {job.key: 0.0 for job in jobs}
+    bar = tqdm(total=sum(j.n_scenes for j in jobs), unit="episode", desc="footsim-reproduce", disable=not progress)
+    try:
+        if workers <= 1:
+            _worker_init()
+            for job, start, stop in tasks:
+                parts[job.key][start], wall = timed_shard(job, start, stop, str(root))
+                seconds[job.key] += wall
+                bar.update(stop - start)
+        else:
+            import multiprocessing
+            from concurrent.futures import ProcessPoolExecutor, as_completed
+
+            context = multiprocessing.get_context("forkserver")
+            with ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_worker_init) as pool:
+                futures = {
+                    pool.submit(timed_shard, job, start, stop, str(root)): (job, start, stop)
+                    for job, start, stop in tasks
+                }
+                for future in as_completed(futures):
+                    job, start, stop = futures[future]
+                    parts[job.key][start], wall = future.result()
+                    seconds[job.key] += wall
+                    bar.update(stop - start)
+    finally:
+        bar.close()
+    return {key: [r for start in sorted(p) for r in p[start]] for key, p in parts.items()}, seconds
+
+
+def run_row(job: Job, records: list[dict]) -> dict:
+    """A row of runs.csv from an evaluation's episodes."""
+    from footsim.rl.evaluate import summarize
+
+    summary = summarize(records)
+    unsafe = sum(r["outcome"] in ("fall", "collision") or r.get("contact_steps", 0) > 0 for r in records)
+    row: dict[str, Any] = {k: getattr(job, k) for k in (*KEY, *INFO)}
+    row.update({m: summary[m] for m in METRICS if m != "unsafe"})
+    row["unsafe"] = unsafe / len(records)
+    row["n_scenes"] = len(records)
+    return row
+
+
+# -- data files ---------------------------------------------------------------------------------
+def _text(value: Any) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, float):
+        return "" if math.isnan(value) else repr(value)
+    return str(value)
+
+
+def _number(text: str) -> float:
+    return math.nan if text in ("", None) else float(text)
+
+
+def read_csv(path: Path) -> list[dict]:
+    if not path.is_file():
+        return []
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def write_csv(path: Path, columns: Sequence[str], rows: Iterable[dict]) -> None:
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=list(columns), lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow({c: _text(row.get(c)) for c in columns})
+    atomic_write_text(path, buffer.getvalue())
+
+
+def merge_rows(old: list[dict], new: list[dict], key: Sequence[str]) -> list[dict]:
+    """``new`` over ``old`` by ``key``; old rows ``new`` does not regenerate are kept, all in key order."""
+    merged = {tuple(r[k] for k in key): r for r in old}
+    merged.update({tuple(str(r[k]) for k in key): {c: _text(v) for c, v in r.items()} for r in new})
+    return [merged[k] for k in sorted(merged)]
+
+
+def differences(old: list[dict], new: list[dict], key: Sequence[str], values: Sequence[str]) -> list[str]:
+    """Every cell of ``new`` that differs from ``old`` (rows matched by ``key``), in words."""
+    before = {tuple(r[k] for k in key): r for r in old}
+    out = []
+    for row in new:
+        k = tuple(str(row[c]) for c in key)
+        if k not in before:
+            if old:
+                out.append(f"{'/'.join(k)}: new row")
+            continue
+        for column in values:
+            a, b = _number(before[k].get(column, "")), _number(_text(row.get(column)))
+            if not (a == b or (math.isnan(a) and math.isnan(b))):
+                out.append(f"{'/'.join(k)} {column}: {_fmt(a)} -> {_fmt(b)}")
+    return out
+
+
+def _fmt(value: float) -> str:
+    return "—" if math.isnan(value) else f"{value:.6g}"
+
+
+def condition_rows(runs: list[dict]) -> list[dict]:
+    """conditions.csv: per condition, scene set, and policy (over seeds) or baseline, every metric's statistics."""
+    groups: dict[tuple, list[dict]] = {}
+    for row in runs:
+        name = "policy" if row["kind"] == "policy" else row["name"]
+        groups.setdefault((row["condition"], row["scene_set"], row["kind"], name), []).append(row)
+    out = []
+    for (condition, scene_set, kind, name), rows in sorted(groups.items()):
+        for metric in METRICS:
+            stats = seed_stats(_number(_text(r[metric])) for r in rows)
+            out.append(
+                {"condition": condition, "scene_set": scene_set, "kind": kind, "name": name, "metric": metric}
+                | stats.as_dict()
+            )
+    return out
+
+
+# -- the page -----------------------------------------------------------------------------------
+def _stat(cstats: dict, key: tuple, metric: str, digits: int = 3, interval: bool = True) -> str:
+    row = cstats.get((*key, metric))
+    if row is None or math.isnan(_number(row["mean"])):
+        return "—"
+    mean, low, high = (_number(row[c]) for c in ("mean", "ci_low", "ci_high"))
+    text = f"{mean:.{digits}f}"
+    if interval and not math.isnan(low):
+        text += f" [{low:.{digits}f}, {high:.{digits}f}]"
+    return text
+
+
+def _table_command(conditions: Sequence[str]) -> str:
+    return f"footsim-reproduce only={','.join(conditions)}"
+
+
+def _train_line(plan: Plan, cond: Condition) -> str:
+    if cond.policies:
+        return f"{cond.name}: the policies of {cond.policies}, evaluated on {cond.backend}"
+    parent = f" init_from={plan.runs_dir}/{cond.parent}/seed<S>" if cond.parent else ""
+    seeds = ",".join(str(s) for s in cond.seeds)
+    return f"{cond.name}: `footsim-train {' '.join(cond.train)} seed=<S>{parent}` (S = {seeds})"
+
+
+def _zoo_line(plan: Plan, cond: Condition, runs: list[dict], root: Path) -> str:
+    names = sorted({r["name"] for r in runs if r["condition"] == cond.name and r["kind"] == "policy"})
+    if not names:
+        return f"{cond.name}: no zoo entry yet"
+    commits = set()
+    for name in names:
+        try:
+            commits.add(((zoo.provenance(name, root).get("commit") or {}).get("sha") or "unknown")[:10])
+        except (zoo.ZooError, OSError, ValueError):
+            commits.add("not in this zoo")
+    return f"{cond.name}: {', '.join(names)} (trained at commit {', '.join(sorted(commits))})"
+
+
+def render_page(plan: Plan, runs: list[dict], cond_rows: list[dict], root: Path, data_dir: str) -> str:
+    cstats = {(r["condition"], r["scene_set"], r["kind"], r["name"], r["metric"]): r for r in cond_rows}
+    seeds_of = {}
+    for r in cond_rows:
+        if r["metric"] == "success":
+            seeds_of[(r["condition"], r["scene_set"], r["kind"], r["name"])] = r["n"]
+    lines = [
+        "# Results",
+        "",
+        f"Generated by `footsim-reproduce` from the data files in `{data_dir}/` (`{RUNS_FILE}`: each policy seed and",
+        f"baseline on each scene set; `{CONDITIONS_FILE}`: per condition the mean over seeds, its 95 % bootstrap",
+        "interval and the interquartile mean). Study plan: "
+        f"`conf/study/{plan.path.name}`. Do not edit this page: run `footsim-reproduce`.",
+        "",
+        "Cells: mean over training seeds [95 % bootstrap interval]; a baseline is one evaluation. "
+        "Success time and double steps are over the successful episodes.",
+        "",
+        "The plan's scene sets: "
+        + "; ".join(f"{name}: seed {seed}, {n} scenes" for name, (seed, n) in plan.scene_sets.items())
+        + " (each table says which it shows).",
+        "",
+    ]
+    header = (
+        "| Condition | Scenes | Policy | Seeds | Success | Success IQM | Fall | Collision | Falls + collisions "
+        "| Timeout | Success time (s) | Double steps |"
+    )
+    for table in plan.tables:
+        conds = [plan.conditions[c] for c in table["conditions"]]
+        lines += [f"## {table['title']}", "", f"Command: `{_table_command(table['conditions'])}`", ""]
+        used = sorted(
+            {(r["scene_set"], r["scenes_seed"], r["n_scenes"]) for r in runs if r["condition"] in table["conditions"]}
+        )
+        if used:
+            lines += ["Scenes: " + "; ".join(f"{name}: seed {seed}, {n} scenes" for name, seed, n in used) + ".", ""]
+        lines += ["Training:", ""] + [f"* {_train_line(plan, c)}" for c in conds] + [""]
+        lines += ["Zoo entries:", ""] + [f"* {_zoo_line(plan, c, runs, root)}" for c in conds] + [""]
+        lines += [header, "|" + "---|" * 12]
+        for cond in conds:
+            for set_name in plan.scene_sets:
+                keys = [(cond.name, set_name, "policy", "policy")] + [
+                    (cond.name, set_name, "baseline", b) for b, cs in plan.baselines.items() if cond.name in cs
+                ]
+                for key in keys:
+                    if key not in seeds_of:
+                        continue
+                    label = "PPO" if key[2] == "policy" else f"{key[3]} baseline"
+                    interval = key[2] == "policy"
+                    cells = [
+                        cond.title,
+                        set_name,
+                        label,
+                        seeds_of[key] if key[2] == "policy" else "—",
+                        _stat(cstats, key, "success", interval=interval),
+                        _stat(cstats, key, "success", interval=False)
+                        if key[2] == "baseline"
+                        else _iqm(cstats, key, "success"),
+                        _stat(cstats, key, "fall", interval=interval),
+                        _stat(cstats, key, "collision", interval=interval),
+                        _stat(cstats, key, "unsafe", interval=interval),
+                        _stat(cstats, key, "timeout", interval=interval),
+                        _stat(cstats, key, "success_time_mean", 2, interval),
+                        _stat(cstats, key, "success_steps_mean", 2, interval),
+                    ]
+                    lines.append("| " + " | ".join(str(c) for c in cells) + " |")
+        lines.append("")
+    lines += thesis_table(plan, cstats)
+    lines += [
+        "## Plots",
+        "",
+        f"* `{data_dir}/success_by_seed.png`: each seed's success on the standard scenes, the mean and its interval.",
+        f"* `{data_dir}/learning_curves.png`: training success rate over steps, mean over seeds and the interval band.",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def _iqm(cstats: dict, key: tuple, metric: str) -> str:
+    row = cstats.get((*key, metric))
+    return "—" if row is None or row["iqm"] in ("", None) else f"{_number(row['iqm']):.3f}"
+
+
+def _mean(cstats: dict, condition: str, metric: str, kind: str = "policy", name: str = "policy") -> float:
+    row = cstats.get((condition, "standard", kind, name, metric))
+    return math.nan if row is None else _number(row["mean"])
+
+
+def figure_value(cstats: dict, fig: dict) -> tuple[float, str]:
+    """A thesis-table figure's value (mean over seeds on the standard set) and its text."""
+    value = _mean(cstats, fig["condition"], fig["metric"])
+    text = _stat(cstats, (fig["condition"], "standard", "policy", "policy"), fig["metric"])
+    if fig.get("ratio_to"):
+        base = _mean(cstats, fig["condition"], fig["metric"], "baseline", fig["ratio_to"])
+        value = value / base if base and not math.isnan(base) else math.nan
+        text = "—" if math.isnan(value) else f"{value:.2f} (÷ {fig['ratio_to']} baseline {base:.2f})"
+    if fig.get("minus"):
+        other = _mean(cstats, fig["minus"], fig["metric"])
+        value = value - other
+        text = "—" if math.isnan(value) else f"{value:+.3f} ({fig['condition']} − {fig['minus']})"
+    return value, text
+
+
+def thesis_table(plan: Plan, cstats: dict) -> list[str]:
+    if not plan.thesis:
+        return []
+    lines = [
+        "## The thesis side by side",
+        "",
+        "footsim: mean over seeds on the standard scenes [95 % bootstrap interval].",
+        "",
+        "| Question | Thesis | footsim | Target |",
+        "|---|---|---|---|",
+    ]
+    for row in plan.thesis:
+        figures, targets = [], []
+        for fig in row["figures"]:
+            value, text = figure_value(cstats, fig)
+            figures.append(f"{fig['label']} {text}")
+            if fig.get("target"):
+                op, limit = parse_target(fig["target"])
+                if math.isnan(value):
+                    verdict = "no data yet"
+                else:
+                    verdict = "met" if (value >= limit if op == ">=" else value <= limit) else "not met"
+                targets.append(f"{fig['label']} {op.replace('>=', '≥').replace('<=', '≤')} {limit:g}: {verdict}")
+        lines.append(f"| {row['question']} | {row['thesis']} | {'; '.join(figures)} | {'; '.join(targets) or '—'} |")
+    lines.append("")
+    return lines
+
+
+# -- plots --------------------------------------------------------------------------------------
+def plot_success_by_seed(path: Path, plan: Plan, runs: list[dict], cstats_rows: list[dict]) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    conds = [c for c in plan.conditions if any(r["condition"] == c for r in runs)]
+    fig, ax = plt.subplots(figsize=(max(6, 1.2 * len(conds) + 2), 4))
+    stats = {
+        (r["condition"], r["kind"], r["name"]): r
+        for r in cstats_rows
+        if r["scene_set"] == "standard" and r["metric"] == "success"
+    }
+    for i, cond in enumerate(conds):
+        seeds = [
+            _number(r["success"])
+            for r in runs
+            if r["condition"] == cond and r["scene_set"] == "standard" and r["kind"] == "policy"
+        ]
+        ax.plot([i] * len(seeds), seeds, "o", color="tab:blue", alpha=0.5, label="seed" if i == 0 else None)
+        row = stats.get((cond, "policy", "policy"))
+        if row is not None and not math.isnan(_number(row["ci_low"])):
+            mean, low, high = (_number(row[c]) for c in ("mean", "ci_low", "ci_high"))
+            ax.errorbar(
+                [i + 0.15],
+                [mean],
+                yerr=[[mean - low], [high - mean]],
+                fmt="s",
+                color="black",
+                capsize=4,
+                label="mean, 95 % CI" if i == 0 else None,
+            )
+        for j, (controller, cs) in enumerate(plan.baselines.items()):
+            brow = stats.get((cond, "baseline", controller))
+            if cond in cs and brow is not None:
+                ax.plot(
+                    [i - 0.15 - 0.1 * j],
+                    [_number(brow["mean"])],
+                    "x",
+                    color=f"C{j + 2}",
+                    label=f"{controller} baseline",
+                )
+    handles, labels = ax.get_legend_handles_labels()
+    unique = dict(zip(labels, handles))
+    ax.legend(unique.values(), unique.keys(), fontsize=7, loc="lower left")
+    ax.set_xticks(range(len(conds)), conds, rotation=20, fontsize=8)
+    ax.set_xlim(-0.7, len(conds) - 0.3)
+    ax.set_ylabel("success (standard scenes)")
+    ax.set_ylim(-0.02, 1.02)
+    fig.tight_layout()
+    atomic_save(lambda tmp: fig.savefig(tmp, dpi=110, format="png"), path, ".png")
+    plt.close(fig)
+
+
+def plot_learning_curves(path: Path, plan: Plan, root: Path) -> bool:
+    """Training success rate over steps per trained condition (zoo ``learning_curve.csv``): the mean
+    over seeds and the pointwise 95 % bootstrap band.  False when no entry has a curve."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from footsim.results.stats import bootstrap_interval
+
+    fig, ax = plt.subplots(figsize=(7, 4))
+    drawn = False
+    available = set(zoo.names(root))
+    for i, cond in enumerate(c for c in plan.conditions.values() if not c.policies):
+        curves = []
+        for s in cond.seeds:
+            name = plan.entry(cond, s)
+            file = root / name / zoo.CURVE_FILE
+            if name in available and file.is_file():
+                rows = read_csv(file)
+                curves.append(
+                    (np.array([float(r["step"]) for r in rows]), np.array([float(r["success_rate"]) for r in rows]))
+                )
+        if not curves:
+            continue
+        end = min(c[0][-1] for c in curves)
+        grid = np.linspace(max(c[0][0] for c in curves), end, 100)
+        values = np.array([np.interp(grid, x, y) for x, y in curves])
+        mean = values.mean(axis=0)
+        ax.plot(grid, mean, color=f"C{i}", label=f"{cond.name} ({len(curves)} seeds)")
+        if len(curves) > 1:
+            bands = np.array([bootstrap_interval(values[:, k], n_resamples=2000) for k in range(len(grid))])
+            ax.fill_between(grid, bands[:, 0], bands[:, 1], color=f"C{i}", alpha=0.2)
+        drawn = True
+    if drawn:
+        ax.set_xlabel("training steps (this run's own)")
+        ax.set_ylabel("success rate, last 100 training episodes")
+        ax.set_ylim(-0.02, 1.02)
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        atomic_save(lambda tmp: fig.savefig(tmp, dpi=110, format="png"), path, ".png")
+    plt.close(fig)
+    return drawn
+
+
+# -- the command --------------------------------------------------------------------------------
+def reproduce(
+    plan: Plan,
+    out: Path,
+    page: Path,
+    root: Path,
+    only: str | None = None,
+    n_scenes: int | None = None,
+    sets: Sequence[str] | None = None,
+    workers: int = 1,
+    shard_size: int = 50,
+    baselines: bool = True,
+    progress: bool = True,
+    plots: bool = True,
+) -> dict:
+    """Evaluate, write the data files, page and plots; returns ``{"differences": [...], "missing": [...], ...}``."""
+    sets = list(sets or plan.scene_sets)
+    for name in sets:
+        if name not in plan.scene_sets:
+            raise PlanError(f"sets={','.join(sets)}: no scene set {name!r} in the plan ({', '.join(plan.scene_sets)})")
+    conditions = select(plan, only)
+    jobs, missing = plan_jobs(plan, conditions, root, n_scenes, sets, baselines)
+    old_runs = read_csv(out / RUNS_FILE)
+    recorded = {tuple(r[k] for k in KEY): int(r["n_scenes"]) for r in old_runs}
+    fewer = [j for j in jobs if recorded.get(tuple(str(v) for v in j.key), 0) > j.n_scenes]
+    if fewer:  # a quick look (n_scenes=20) must not replace the full evaluations in the data files
+        j = fewer[0]
+        raise PlanError(
+            f"{out / RUNS_FILE} holds {recorded[j.key]}-scene evaluations ({'/'.join(j.key)} and "
+            f"{len(fewer) - 1} more); n_scenes={j.n_scenes} would replace them: give out=DIR and page=FILE elsewhere"
+        )
+    if missing:
+        print(f"not in the zoo ({len(missing)}), not evaluated: {', '.join(missing)}")
+    started = time.time()
+    results, seconds = run_jobs(jobs, root, workers, shard_size, progress)
+    wall = time.time() - started
+    new_runs = [run_row(job, results[job.key]) for job in jobs]
+
+    changed = differences(old_runs, new_runs, KEY, ("n_scenes", *METRICS))
+    runs = merge_rows(old_runs, new_runs, KEY)
+    old_conds = read_csv(out / CONDITIONS_FILE)
+    cond_rows = condition_rows(runs)
+    changed += differences(old_conds, cond_rows, (*KEY, "metric"), ("mean", "ci_low", "ci_high", "iqm"))
+    write_csv(out / RUNS_FILE, (*KEY, *INFO, *METRICS), runs)
+    write_csv(
+        out / CONDITIONS_FILE, (*KEY, "metric", *STAT_COLUMNS), [{k: _text(v) for k, v in r.items()} for r in cond_rows]
+    )
+    cond_rows = read_csv(out / CONDITIONS_FILE)  # the page shows what the file holds
+    if plots:
+        plot_success_by_seed(out / "success_by_seed.png", plan, runs, cond_rows)
+        plot_learning_curves(out / "learning_curves.png", plan, root)
+    data_dir = os.path.relpath(out)  # as the reader types it from where the command ran (the repository top)
+    atomic_write_text(page, render_page(plan, runs, cond_rows, root, data_dir))
+    episodes = sum(j.n_scenes for j in jobs)
+    print(f"evaluated {len(jobs)} policies and baselines ({episodes} episodes) in {wall:.0f} s; {out}, {page}")
+    by_kind: dict[str, float] = {}
+    for job in jobs:
+        label = f"{job.backend} {'policies' if job.kind == 'policy' else job.name + ' baseline'}"
+        by_kind[label] = by_kind.get(label, 0.0) + seconds[job.key]
+    print("worker seconds: " + ", ".join(f"{label} {s:.0f} s" for label, s in sorted(by_kind.items())))
+    if changed:
+        print(f"{len(changed)} cell(s) differ from the data files there before:")
+        for line in changed:
+            print(f"  {line}")
+    else:
+        print("no cell differs from the data files there before" if old_runs else "no data files before: all new")
+    return {
+        "differences": changed,
+        "missing": missing,
+        "jobs": len(jobs),
+        "episodes": episodes,
+        "wall_s": wall,
+        "worker_s": by_kind,
+    }
+
+
+# -- training -----------------------------------------------------------------------------------
+def _training_order(plan: Plan, conditions: Sequence[Condition]) -> list[Condition]:
+    """Trained conditions, each after its parent."""
+    order: list[Condition] = []
+
+    def visit(cond: Condition) -> None:
+        if cond in order or cond.policies:
+            return
+        if cond.parent:
+            visit(plan.conditions[cond.parent])
+        order.append(cond)
+
+    for cond in conditions:
+        visit(cond)
+    return order
+
+
+def train_commands(
+    plan: Plan, conditions: Sequence[Condition], runs_dir: Path, launcher: str | None
+) -> list[list[str]]:
+    """The ``footsim-train`` commands of the plan's trainings (parents first).  Without a launcher one
+    command per seed; with one, one multirun per condition (``seed=0,1,...``) on that launcher."""
+    commands = []
+    for cond in _training_order(plan, conditions):
+        target = runs_dir / cond.name
+        if launcher is None:
+            for s in cond.seeds:
+                cmd = ["footsim-train", *cond.train, f"seed={s}"]
+                if cond.parent:
+                    cmd.append(f"init_from={runs_dir / cond.parent / f'seed{s}'}")
+                commands.append([*cmd, f"hydra.run.dir={target / f'seed{s}'}"])
+        else:
+            cmd = [
+                "footsim-train",
+                "-m",
+                f"+launcher={launcher}",
+                *cond.train,
+                f"seed={','.join(str(s) for s in cond.seeds)}",
+            ]
+            if cond.parent:
+                cmd.append(f"init_from={runs_dir / cond.parent}/seed${{seed}}")
+            commands.append([*cmd, f"hydra.sweep.dir={target}", "hydra.sweep.subdir=seed${seed}"])
+    return commands
+
+
+def train(
+    plan: Plan,
+    conditions: Sequence[Condition],
+    runs_dir: Path,
+    root: Path,
+    launcher: str | None = None,
+    dry_run: bool = False,
+    add: bool = True,
+) -> list[list[str]]:
+    """Run the trainings (a seed whose run already has ``eval/summary.json`` is skipped: re-running
+    resumes the study), then add each finished run to the zoo as its plan name."""
+    commands = train_commands(plan, conditions, runs_dir, launcher)
+    for cmd in commands:
+        line = shlex.join(cmd)
+        if launcher is None:
+            done = Path(cmd[-1].split("=", 1)[1]) / "eval" / "summary.json"
+            if done.is_file():
+                print(f"done already: {line}")
+                continue
+        print(line, flush=True)
+        if not dry_run:
+            subprocess.run([sys.executable, "-c", "from footsim.tools.train import main; main()", *cmd[1:]], check=True)
+    if add and not dry_run:
+        for cond in _training_order(plan, conditions):
+            for s in cond.seeds:
+                run = runs_dir / cond.name / f"seed{s}"
+                if (run / "model.zip").is_file():
+                    zoo.add(run, plan.entry(cond, s), root, condition=cond.name, force=True)
+                    print(f"added {run} to the zoo as {plan.entry(cond, s)}")
+    return commands

@@ -1,0 +1,102 @@
+"""``footsim-reproduce [key=value ...]``: re-evaluate the study's zoo policies and baselines, rewrite the
+data files, the results page and its plots, and report the cells that changed
+(:mod:`footsim.results.reproduce`); ``train=true`` runs the study's trainings instead.
+
+Keys: ``plan`` (default conf/study/v1.yaml), ``zoo`` (default $FOOTSIM_ZOO or footsim/zoo),
+``out`` (data files and plots, default docs/results), ``page`` (default docs/RESULTS.generated.md),
+``only`` (2d, 3d or condition names, comma-separated), ``sets`` (scene sets, default all),
+``n_scenes`` (at most this many scenes per set), ``jobs`` (worker processes, default 1),
+``shard_size`` (scenes per task, default 50), ``baselines`` (true), ``plots`` (true), ``progress``
+(true), ``strict`` (exit 1 when a cell changed; false).  Training: ``train=true [launcher=L |
++launcher=L] [runs_dir=DIR] [dry_run=true] [add=true]``.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from footsim import zoo
+from footsim.results import reproduce as rp
+
+DEFAULTS: dict[str, str | None] = {
+    "plan": None,
+    "zoo": None,
+    "out": "docs/results",
+    "page": "docs/RESULTS.generated.md",
+    "only": None,
+    "sets": None,
+    "n_scenes": None,
+    "jobs": "1",
+    "shard_size": "50",
+    "baselines": "true",
+    "plots": "true",
+    "progress": "true",
+    "strict": "false",
+    "train": "false",
+    "launcher": None,
+    "runs_dir": None,
+    "dry_run": "false",
+    "add": "true",
+}
+BOOLS = ("baselines", "plots", "progress", "strict", "train", "dry_run", "add")
+INTS = ("n_scenes", "jobs", "shard_size")
+
+
+def parse_args(argv: list[str]) -> dict:
+    args: dict = dict(DEFAULTS)
+    for arg in argv:
+        if arg in ("-h", "--help"):
+            raise SystemExit(__doc__)
+        if "=" not in arg:
+            raise SystemExit(f"footsim-reproduce: expected key=value, got {arg!r}; keys: {sorted(DEFAULTS)}")
+        key, value = arg.split("=", 1)
+        key = "launcher" if key == "+launcher" else key
+        if key not in DEFAULTS:
+            raise SystemExit(f"footsim-reproduce: unknown key {key!r}; keys: {sorted(DEFAULTS)}")
+        args[key] = value
+    for key in BOOLS:
+        value = str(args[key]).lower()
+        if value not in ("true", "false"):
+            raise SystemExit(f"footsim-reproduce: {key} must be true or false, got {args[key]!r}")
+        args[key] = value == "true"
+    for key in INTS:
+        if args[key] is None:
+            continue
+        try:
+            args[key] = int(args[key])
+        except ValueError:
+            raise SystemExit(f"footsim-reproduce: {key} must be an integer, got {args[key]!r}") from None
+        if args[key] <= 0:
+            raise SystemExit(f"footsim-reproduce: {key} must be > 0, got {args[key]}")
+    return args
+
+
+def main(argv: list[str] | None = None) -> None:
+    args = parse_args(sys.argv[1:] if argv is None else argv)
+    root = Path(args["zoo"]).expanduser() if args["zoo"] else zoo.zoo_dir()
+    try:
+        plan = rp.load_plan(args["plan"])
+        conditions = rp.select(plan, args["only"])
+        if args["train"]:
+            runs_dir = Path(args["runs_dir"] or plan.runs_dir).expanduser().resolve()
+            rp.train(plan, conditions, runs_dir, root, args["launcher"], args["dry_run"], args["add"])
+            return
+        result = rp.reproduce(
+            plan,
+            Path(args["out"]),
+            Path(args["page"]),
+            root,
+            only=args["only"],
+            n_scenes=args["n_scenes"],
+            sets=args["sets"].split(",") if args["sets"] else None,
+            workers=args["jobs"],
+            shard_size=args["shard_size"],
+            baselines=args["baselines"],
+            progress=args["progress"],
+            plots=args["plots"],
+        )
+    except (rp.PlanError, zoo.ZooError) as err:
+        raise SystemExit(f"footsim-reproduce: {err}") from None
+    if args["strict"] and result["differences"]:
+        raise SystemExit(1)

@@ -1,0 +1,478 @@
+"""The model zoo: trained policies shipped with the code, registered by name.
+
+An entry is a directory ``<zoo>/<NAME>/`` holding what a run directory holds for evaluation and
+transfer (``model.zip``, ``vecnormalize.pkl`` when the run normalized, ``config.yaml``), its
+evaluation summary (``summary.json``), ``provenance.json`` (commit, seed, steps, wall time,
+library versions, parent, file digests), ``check_episodes.csv`` (the first ``check_scenes``
+episodes of the standard scene set, evaluated when the entry was added: the reference a
+re-evaluation must match exactly) and, when the run logged to TensorBoard, ``learning_curve.csv``.
+``<zoo>/index.json`` lists the entries with a one-line summary each.
+
+The zoo is ``footsim/zoo/`` (a wheel carries it as package data); the environment variable
+``FOOTSIM_ZOO`` points every command at another directory instead.  ``zoo:NAME`` is accepted
+wherever a run directory is (``footsim-eval run=zoo:NAME``, ``footsim-train init_from=zoo:NAME``);
+resolving it checks that the entry's config still composes with the current code and fails
+naming the key or group that changed.
+
+``model.zip`` is the run's model with the optimizer's moment estimates dropped (an Adam state
+with no steps taken): the policy and value weights are the run's, bit for bit, which is all that
+evaluation and ``init_from`` read, and the file is a third of the size.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import json
+import os
+import platform
+import re
+import shutil
+import subprocess
+import tempfile
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+from omegaconf import DictConfig
+
+PREFIX = "zoo:"
+INDEX_FILE = "index.json"
+PROVENANCE_FILE = "provenance.json"
+SUMMARY_FILE = "summary.json"
+CHECK_FILE = "check_episodes.csv"
+CURVE_FILE = "learning_curve.csv"
+#: The standard scene set's seed (conf/eval.yaml ``scenes_seed``); the check episodes are its first scenes.
+STANDARD_SCENES_SEED = 20220101
+_NAME = re.compile(r"^[a-z0-9][a-z0-9_-]{0,63}$")
+#: Libraries whose versions an entry records (besides the ones SB3 wrote into model.zip at training).
+_LIBRARIES = ("numpy", "scipy", "gymnasium", "stable-baselines3", "torch", "pymunk", "numba", "hydra-core", "mujoco")
+
+
+class ZooError(ValueError):
+    """A zoo name, entry or index that cannot be used; the message says which and why."""
+
+
+# -- where and what -----------------------------------------------------------------------------
+def zoo_dir() -> Path:
+    """The zoo's directory: ``$FOOTSIM_ZOO`` if set, else the package's own ``footsim/zoo``."""
+    env = os.environ.get("FOOTSIM_ZOO")
+    return Path(env).expanduser() if env else Path(__file__).resolve().parent
+
+
+def is_zoo_ref(text: Any) -> bool:
+    return isinstance(text, str) and text.startswith(PREFIX)
+
+
+def load_index(root: Path | None = None) -> dict:
+    """``{"format": 1, "entries": {NAME: {...}}}`` of the zoo (empty when it has no index yet)."""
+    path = (root or zoo_dir()) / INDEX_FILE
+    if not path.is_file():
+        return {"format": 1, "entries": {}}
+    try:
+        index = json.loads(path.read_text())
+    except ValueError as err:
+        raise ZooError(f"the zoo index {path} is not valid JSON: {err}") from None
+    if not isinstance(index, dict) or not isinstance(index.get("entries"), dict):
+        raise ZooError(f"the zoo index {path} has no 'entries' mapping")
+    return index
+
+
+def names(root: Path | None = None) -> list[str]:
+    return sorted(load_index(root)["entries"])
+
+
+def check_name(name: str) -> str:
+    if not isinstance(name, str) or not _NAME.match(name):
+        raise ZooError(
+            f"zoo name {name!r} is not valid: lower-case letters, digits, '_' and '-', starting with a "
+            "letter or digit, at most 64 characters"
+        )
+    return name
+
+
+def entry_dir(name: str, root: Path | None = None) -> Path:
+    """An entry's directory; an unknown name fails listing the zoo's names."""
+    root = root or zoo_dir()
+    known = names(root)
+    if name not in known:
+        listing = ", ".join(known) if known else "none (the zoo is empty)"
+        raise ZooError(f"no zoo entry {name!r} in {root}; entries: {listing} (footsim-zoo list)")
+    path = root / name
+    if not (path / "model.zip").is_file() or not (path / "config.yaml").is_file():
+        raise ZooError(f"zoo entry {name!r} is incomplete: {path} lacks model.zip or config.yaml")
+    return path
+
+
+def provenance(name: str, root: Path | None = None) -> dict:
+    return json.loads((entry_dir(name, root) / PROVENANCE_FILE).read_text())
+
+
+def resolve(spec: str | os.PathLike, root: Path | None = None, check: bool = True) -> Path:
+    """A run directory from ``spec``: ``zoo:NAME`` is the entry's directory (with ``check``, after
+    :func:`check_config`); anything else is taken as a path."""
+    if not is_zoo_ref(spec):
+        return Path(spec).expanduser().resolve()
+    name = str(spec)[len(PREFIX) :]
+    path = entry_dir(name, root)
+    if check:
+        check_config(name, root)
+    return path
+
+
+# -- does an entry still fit the code ------------------------------------------------------------
+def config_problem(cfg: DictConfig, obs_size: int | None = None) -> str | None:
+    """Why a run's saved config no longer composes with this code (naming the key or group), or None.
+
+    Every env group must compose over its current preset (an unknown preset, a key the schema
+    lost, a value the builders refuse), the agent section over the current agent schema, and
+    the task's observation must still have the ``obs_size`` inputs the policy reads."""
+    from footsim import config as fconf
+
+    missing = [g for g in (*fconf.ENV_GROUPS, "agent") if g not in cfg]
+    if missing:
+        return f"the config has no {', '.join(missing)} section(s), which footsim now requires"
+    try:
+        env = fconf.env_config(**{g: fconf.to_plain(cfg[g]) for g in fconf.ENV_GROUPS})
+        _, task = fconf.build_task(env["task"])
+        fconf.build_noise(env["noise"])
+        fconf.build_walk(env["walk"])
+        fconf.build_robot(env["robot"])
+        fconf.merge_checked(fconf.compose("config").agent, fconf.to_plain(cfg.agent), "agent")
+    except (ValueError, TypeError, KeyError) as err:
+        return str(err)
+    if obs_size is not None:
+        layout = task.observation_layout
+        now = sum(size for _, size in layout)
+        if now != obs_size:
+            blocks = " + ".join(f"{block} {size}" for block, size in layout)
+            name = env["task"]["name"]
+            return f"task {name}: its observation is now {blocks} = {now} inputs; the policy reads {obs_size}"
+    return None
+
+
+def check_config(name: str, root: Path | None = None) -> DictConfig:
+    """The entry's run config, after checking that it composes with this code (else :class:`ZooError`
+    naming what changed and the commit the entry was made with)."""
+    from footsim.rl.common import load_run_config
+
+    path = entry_dir(name, root)
+    cfg = load_run_config(path)
+    prov_path = path / PROVENANCE_FILE
+    prov = json.loads(prov_path.read_text()) if prov_path.is_file() else {}
+    problem = config_problem(cfg, prov.get("obs_size"))
+    if problem is not None:
+        commit = (prov.get("commit") or {}).get("sha") or "an unknown commit"
+        raise ZooError(
+            f"zoo entry {name!r} no longer composes with this footsim: {problem} "
+            f"(the entry's config.yaml was written by {commit}; re-train it or evaluate it with that commit)"
+        )
+    return cfg
+
+
+# -- adding an entry ----------------------------------------------------------------------------
+def _sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def _git_commit(where: Path) -> dict | None:
+    """HEAD and whether the tree has uncommitted changes, of the git checkout at ``where``."""
+    try:
+        sha = subprocess.run(
+            ["git", "-C", str(where), "rev-parse", "HEAD"], capture_output=True, text=True, check=True
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "-C", str(where), "status", "--porcelain", "--untracked-files=no"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return None
+    return {"sha": sha, "dirty": bool(dirty)}
+
+
+def commit_of(commit: str | None) -> dict:
+    """The provenance's commit record: ``commit`` is a SHA, a git checkout's path (its HEAD), or
+    None (the checkout footsim is imported from, which is what adds the entry: said so)."""
+    if commit and Path(commit).expanduser().is_dir():
+        found = _git_commit(Path(commit).expanduser())
+        if found is None:
+            raise ZooError(f"commit={commit}: not a git checkout")
+        return {**found, "source": f"HEAD of {Path(commit).expanduser().resolve()}"}
+    if commit:
+        if not re.fullmatch(r"[0-9a-f]{7,40}", commit):
+            raise ZooError(f"commit={commit!r}: expected a git SHA (7-40 hex digits) or a checkout's path")
+        return {"sha": commit, "dirty": None, "source": "given (commit=)"}
+    found = _git_commit(Path(__file__).resolve().parent)
+    if found is None:
+        return {"sha": None, "dirty": None, "source": "unknown (footsim is not imported from a git checkout)"}
+    return {**found, "source": "the footsim checkout that added the entry (the run did not record its own)"}
+
+
+def _training_versions(model_zip: Path) -> dict:
+    """The library versions SB3 wrote into ``model.zip`` (``system_info.txt``) when the run saved it."""
+    import zipfile
+
+    with zipfile.ZipFile(model_zip) as archive:
+        if "system_info.txt" not in archive.namelist():
+            return {}
+        text = archive.read("system_info.txt").decode()
+    out = {}
+    for line in text.splitlines():
+        key, _, value = line.lstrip("- ").partition(":")
+        if value.strip():
+            out[key.strip()] = value.strip()
+    return out
+
+
+def _installed_versions() -> dict:
+    out = {"python": platform.python_version()}
+    for lib in _LIBRARIES:
+        try:
+            out[lib] = metadata.version(lib)
+        except metadata.PackageNotFoundError:
+            pass
+    return out
+
+
+def _slim_model(source: Path, target: Path) -> dict:
+    """Save ``source``'s PPO model to ``target`` with a fresh optimizer state; check the weights survive."""
+    import torch
+    from stable_baselines3 import PPO
+
+    from footsim.utils import atomic_save
+
+    model = PPO.load(source, device="cpu")
+    weights = {k: v.clone() for k, v in model.policy.state_dict().items()}
+    policy = model.policy
+    fresh: Any = policy.optimizer_class  # Adam (SB3's default); its constructor takes lr
+    policy.optimizer = fresh(policy.parameters(), lr=model.lr_schedule(1), **policy.optimizer_kwargs)
+    atomic_save(model.save, target, ".zip")
+    again = PPO.load(target, device="cpu").policy.state_dict()
+    if weights.keys() != again.keys() or not all(torch.equal(weights[k], again[k]) for k in weights):
+        raise ZooError(f"the policy weights of {target} differ from {source}'s after saving; not adding")
+    shape = model.observation_space.shape
+    return {"num_timesteps": int(model.num_timesteps), "obs_size": int(shape[0]) if shape else None}
+
+
+def _learning_curve(tb_dir: Path, max_points: int = 200) -> str | None:
+    """``step,success_rate,ep_rew_mean`` from the run's TensorBoard logs (at most ``max_points`` rows), or None."""
+    if not tb_dir.is_dir():
+        return None
+    try:
+        from tensorboard.backend.event_processing.event_accumulator import (  # type: ignore[import-untyped]
+            EventAccumulator,
+        )
+    except ImportError:
+        return None
+    series: dict[str, dict[int, float]] = {"rollout/success_rate": {}, "rollout/ep_rew_mean": {}}
+    for events in sorted({p.parent for p in tb_dir.rglob("events.out.tfevents.*")}):
+        acc = EventAccumulator(str(events), size_guidance={"scalars": 0})
+        acc.Reload()
+        for tag, values in series.items():
+            if tag in acc.Tags().get("scalars", []):
+                values.update({int(e.step): float(e.value) for e in acc.Scalars(tag)})
+    steps = sorted(series["rollout/success_rate"])
+    if not steps:
+        return None
+    stride = max(1, -(-len(steps) // max_points))
+    kept = steps[::stride] if steps[::stride][-1] == steps[-1] else [*steps[::stride], steps[-1]]
+    lines = ["step,success_rate,ep_rew_mean"]
+    for step in kept:
+        reward = series["rollout/ep_rew_mean"].get(step)
+        lines.append(f"{step},{series['rollout/success_rate'][step]!r},{'' if reward is None else repr(reward)}")
+    return "\n".join(lines) + "\n"
+
+
+def episodes_csv(records: list[dict]) -> str:
+    """Episode records as ``footsim-eval`` writes ``episodes.csv`` (the same columns and number text)."""
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=list(records[0].keys()))
+    writer.writeheader()
+    writer.writerows(records)
+    return buffer.getvalue()
+
+
+def check_episodes(run_dir: Path, n_scenes: int, scenes_seed: int = STANDARD_SCENES_SEED) -> list[dict]:
+    """The run's policy on the first ``n_scenes`` of the standard scene set of its own task and
+    backend, deterministic, episode ``i`` seeded ``i`` (what ``footsim-eval run=... n_scenes=N`` does)."""
+    from footsim.env import make_env
+    from footsim.rl.common import LoadedPolicy, load_run_config
+    from footsim.rl.evaluate import PolicyController, evaluate
+    from footsim.tasks.scenes import sample_scenes
+
+    cfg = load_run_config(run_dir)
+    env = make_env(cfg)
+    try:
+        scenes = sample_scenes(env.sampler, n_scenes, scenes_seed)
+        return evaluate(env, PolicyController(LoadedPolicy(run_dir)), scenes, seed=0, progress=False)
+    finally:
+        env.close()
+
+
+def _parent_name(parent_path: str | None, root: Path) -> str | None:
+    """``zoo:NAME`` when the parent run is in the zoo (its entry directory, or the run an entry was
+    added from), else None."""
+    if not parent_path:
+        return None
+    parent = Path(parent_path).resolve()
+    for name, row in load_index(root)["entries"].items():
+        if parent == (root / name).resolve() or str(parent) == row.get("source_run"):
+            return f"{PREFIX}{name}"
+    return None
+
+
+def add(
+    run_dir: str | os.PathLike,
+    name: str,
+    root: Path | None = None,
+    *,
+    condition: str | None = None,
+    description: str = "",
+    commit: str | None = None,
+    check_scenes: int = 20,
+    force: bool = False,
+) -> dict:
+    """Copy a finished run into the zoo as ``name`` and register it; returns its index row.
+
+    The entry is assembled in a temporary directory inside the zoo and moved into place in one
+    rename, then the index is rewritten atomically: an interrupted ``add`` leaves the zoo as it was.
+    """
+    from footsim.rl.common import MODEL_FILE, VECNORM_FILE, load_run_config
+    from footsim.utils import atomic_write_text
+
+    check_name(name)
+    root = (root or zoo_dir()).resolve()
+    run = Path(run_dir).expanduser().resolve()
+    for needed in (MODEL_FILE, "config.yaml"):
+        if not (run / needed).is_file():
+            raise ZooError(f"{run} is not a finished run: {needed} is missing")
+    index = load_index(root)
+    if name in index["entries"] and not force:
+        raise ZooError(f"zoo entry {name!r} exists; give force=true to replace it")
+    if check_scenes < 1:
+        raise ZooError(f"check_scenes must be >= 1, got {check_scenes}")
+    cfg = load_run_config(run)
+    problem = config_problem(cfg)
+    if problem is not None:
+        raise ZooError(f"{run}: its config does not compose with this footsim: {problem}")
+
+    root.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(dir=root, prefix=f".{name}.adding-"))
+    try:
+        shutil.copy2(run / "config.yaml", tmp / "config.yaml")
+        if (run / VECNORM_FILE).is_file():
+            shutil.copy2(run / VECNORM_FILE, tmp / VECNORM_FILE)
+        model = _slim_model(run / MODEL_FILE, tmp / MODEL_FILE)
+        summary_path = run / "eval" / SUMMARY_FILE
+        summary = json.loads(summary_path.read_text()) if summary_path.is_file() else None
+        if summary is not None:
+            shutil.copy2(summary_path, tmp / SUMMARY_FILE)
+        records = check_episodes(tmp, check_scenes)
+        atomic_write_text(tmp / CHECK_FILE, episodes_csv(records))
+        curve = _learning_curve(run / "tb")
+        if curve is not None:
+            atomic_write_text(tmp / CURVE_FILE, curve)
+        train_info = json.loads((run / "train_info.json").read_text()) if (run / "train_info.json").is_file() else {}
+        parent = json.loads((run / "parent.json").read_text()) if (run / "parent.json").is_file() else None
+        parent_zoo = _parent_name(parent.get("init_from"), root) if parent else None
+        # a run initialised from another starts counting at 0: its own steps; the total adds the
+        # parent's (its whole lineage's when the parent is a zoo entry)
+        parent_steps = int(parent.get("parent_num_timesteps", 0)) if parent else 0
+        if parent_zoo is not None:
+            parent_steps = int(
+                load_index(root)["entries"][parent_zoo[len(PREFIX) :]].get("steps_total") or parent_steps
+            )
+        prov = {
+            "name": name,
+            "condition": condition,
+            "description": description,
+            "source_run": str(run),
+            "commit": commit_of(commit),
+            "seed": int(cfg.seed),
+            "backend": cfg.backend.name,
+            "task": cfg.task.name,
+            "noise": cfg.noise.get("name", "none"),
+            "randomization": (cfg.get("randomization") or {}).get("name", "none"),
+            "agent": cfg.agent.get("name"),
+            "obs_size": model["obs_size"],
+            "steps": model["num_timesteps"],
+            "steps_total": model["num_timesteps"] + parent_steps,
+            "wall_time_s": train_info.get("wall_time_s"),
+            "parent": None
+            if parent is None
+            else {
+                "zoo": parent_zoo,
+                "run": parent.get("init_from"),
+                "backend": parent.get("parent_backend"),
+                "task": parent.get("parent_task"),
+                "steps": parent_steps,
+            },
+            "library_versions": {
+                "at_training (model.zip system_info)": _training_versions(run / MODEL_FILE),
+                "at_add": _installed_versions(),
+            },
+            "check": {"n_scenes": check_scenes, "scenes_seed": STANDARD_SCENES_SEED, "eval_seed": 0},
+            "model": "the run's model.zip with a fresh optimizer state (policy and value weights unchanged)",
+            "files": {},
+        }
+        prov["files"] = {p.name: _sha256(p) for p in sorted(tmp.iterdir()) if p.is_file()}
+        atomic_write_text(tmp / PROVENANCE_FILE, json.dumps(prov, indent=2) + "\n")
+        os.chmod(tmp, 0o755)
+        target = root / name
+        old = None
+        if target.exists():
+            old = Path(tempfile.mkdtemp(dir=root, prefix=f".{name}.replaced-"))
+            os.replace(target, old / name)
+        os.replace(tmp, target)
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)
+    row = {
+        "condition": condition,
+        "seed": prov["seed"],
+        "backend": prov["backend"],
+        "task": prov["task"],
+        "noise": prov["noise"],
+        "steps_total": prov["steps_total"],
+        "success": None if summary is None else summary.get("success"),
+        "description": description,
+        "source_run": str(run),
+    }
+    index["entries"][name] = row
+    index["entries"] = dict(sorted(index["entries"].items()))
+    atomic_write_text(root / INDEX_FILE, json.dumps(index, indent=2) + "\n")
+    return row
+
+
+def verify(name: str, root: Path | None = None) -> list[str]:
+    """What is wrong with an entry: files whose digest differs from its provenance, missing files,
+    a config that no longer composes (empty when all is well)."""
+    path = entry_dir(name, root)
+    problems = []
+    prov = json.loads((path / PROVENANCE_FILE).read_text())
+    for file, digest in prov.get("files", {}).items():
+        if not (path / file).is_file():
+            problems.append(f"{file} is missing")
+        elif _sha256(path / file) != digest:
+            problems.append(f"{file} differs from the digest recorded in {PROVENANCE_FILE}")
+    try:
+        check_config(name, root)
+    except ZooError as err:
+        problems.append(str(err))
+    return problems
+
+
+def total_size(root: Path | None = None) -> int:
+    """Bytes of every entry file in the zoo (the index included)."""
+    root = root or zoo_dir()
+    files = [root / INDEX_FILE] + [p for n in names(root) for p in (root / n).iterdir() if p.is_file()]
+    return sum(p.stat().st_size for p in files if p.is_file())

@@ -1,0 +1,259 @@
+"""footsim-reproduce (footsim.results.reproduce): the study plan, the training commands it gives, and an
+end-to-end reproduction on a small plan and zoo checked against footsim-eval and hand-computed statistics."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import subprocess
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from footsim import config as fconf
+from footsim import zoo
+from footsim.results import reproduce as rp
+from footsim.tools.reproduce import main as reproduce_main
+
+
+def test_study_plan_v1_training_commands_compose_to_its_conditions():
+    """Each trained condition's footsim-train overrides compose with today's configs, and give the
+    backend, task and noise the condition says its policies are evaluated under."""
+    plan = rp.load_plan()
+    assert plan.scene_sets["standard"] == (20220101, 500)
+    assert plan.scene_sets["heldout"][0] != 20220101
+    trained = [c for c in plan.conditions.values() if not c.policies]
+    assert {c.name for c in trained} >= {"2d_nav", "2d_obst", "2d_nav_noise", "2d_obst_noise", "mj_nav", "mj_obst"}
+    for cond in trained:
+        cfg = fconf.compose("config", [*cond.train, "seed=0"])
+        assert (cfg.backend.name, cfg.task.name, cfg.noise.name) == (cond.backend, cond.task, cond.noise), cond.name
+        assert len(cond.seeds) >= (5 if cond.backend == "pymunk" else 3), cond.name  # issue 26: >= 5 in 2D, >= 3 in 3D
+    for controller in plan.baselines:
+        fconf.compose("eval", [f"controller={controller}"])  # every baseline names a controller preset
+    assert plan.entry(plan.conditions["2d_nav_on_mujoco"], 3) == "2d_nav_s3"  # evaluates 2d_nav's policies
+
+
+def _plan(tmp_path: Path, body: str) -> Path:
+    path = tmp_path / "plan.yaml"
+    path.write_text(textwrap.dedent(body))
+    return path
+
+
+BASE = """
+scene_sets: {standard: {seed: 20220101, n_scenes: 6}, heldout: {seed: 7, n_scenes: 4}}
+conditions:
+  nav:
+    title: tiny obstacle-free
+    backend: pymunk
+    task: nav
+    seeds: [0, 1]
+    train: [train.total_timesteps=128]
+"""
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda t: t.replace("    backend: pymunk\n", ""), r"conditions\.nav\.backend is missing"),
+        (
+            lambda t: t.replace("    seeds: [0, 1]", "    seeds: [0, one]"),
+            r"conditions\.nav\.seeds must be a list of integers",
+        ),
+        (lambda t: t + "    parent: nope\n", r"conditions\.nav\.parent: no condition 'nope'"),
+        (lambda t: t + "    walk: fast\n", r"conditions\.nav: unknown key\(s\) \['walk'\]"),
+        (lambda t: t.replace("n_scenes: 4", "n_scenes: 0"), r"scene_sets\.heldout\.n_scenes must be > 0"),
+        (lambda t: t + "    n_scenes: all\n", r"conditions\.nav\.n_scenes must be a positive integer"),
+        (lambda t: t + "baselines: {velocity: [obst]}\n", r"baselines\.velocity: no condition 'obst'"),
+        (
+            lambda t: t + "thesis: [{question: q, thesis: t, figures: [{label: s, condition: nav, metric: wins}]}]\n",
+            r"thesis\[0\]\.figures\[0\]\.metric: 'wins' is not one of",
+        ),
+        (
+            lambda t: (
+                t + "thesis: [{question: q, thesis: t, figures: [{label: s, condition: nav, metric: success, "
+                "target: 'about 1'}]}]\n"
+            ),
+            r"thesis\[0\]\.figures\[0\]\.target: expected",
+        ),
+    ],
+)
+def test_bad_plan_fails_naming_the_key(tmp_path, edit, message):
+    with pytest.raises(rp.PlanError, match=message):
+        rp.load_plan(_plan(tmp_path, edit(BASE)))
+
+
+def test_select_and_training_commands(tmp_path, capsys):
+    plan = rp.load_plan()
+    assert {c.name for c in rp.select(plan, "2d")} == {"2d_nav", "2d_obst", "2d_nav_noise", "2d_obst_noise"}
+    assert {c.backend for c in rp.select(plan, "3d")} == {"mujoco"}
+    with pytest.raises(rp.PlanError, match=r"only=4d: '4d' is neither 2d, 3d nor a condition"):
+        rp.select(plan, "4d")
+
+    runs = tmp_path / "runs"
+    commands = rp.train_commands(plan, rp.select(plan, "mj_nav"), runs, None)
+    # the parent condition first (its 5 seeds), then the fine-tunes from the same seed's parent run
+    assert [c[-1] for c in commands] == [f"hydra.run.dir={runs}/2d_nav/seed{s}" for s in range(5)] + [
+        f"hydra.run.dir={runs}/mj_nav/seed{s}" for s in range(3)
+    ]
+    assert commands[5][:2] == ["footsim-train", "backend=mujoco"]
+    assert f"init_from={runs}/2d_nav/seed0" in commands[5] and "seed=0" in commands[5]
+    multirun = rp.train_commands(plan, rp.select(plan, "2d_nav_noise"), runs, "slurm")
+    assert multirun[1][:3] == ["footsim-train", "-m", "+launcher=slurm"]
+    assert "seed=0,1,2,3,4" in multirun[1] and f"init_from={runs}/2d_nav/seed${{seed}}" in multirun[1]
+    assert multirun[1][-2:] == [f"hydra.sweep.dir={runs}/2d_nav_noise", "hydra.sweep.subdir=seed${seed}"]
+
+    (runs / "2d_nav" / "seed0" / "eval").mkdir(parents=True)
+    (runs / "2d_nav" / "seed0" / "eval" / "summary.json").write_text("{}")
+    reproduce_main(["train=true", "only=2d_nav", f"runs_dir={runs}", "dry_run=true", f"zoo={tmp_path / 'zoo'}"])
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("done already: footsim-train +experiment=thesis_2d seed=0")
+    assert out[1] == f"footsim-train +experiment=thesis_2d seed=1 hydra.run.dir={runs}/2d_nav/seed1"
+    assert len(out) == 5 and not (tmp_path / "zoo").exists()  # a dry run trains and adds nothing
+
+
+def _rows(path: Path) -> list[dict]:
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+@pytest.fixture(scope="module")
+def small_study(tmp_path_factory, tiny_runs):
+    """A zoo with two tiny runs (seeds 0 and 1) as the plan's entries nav_s0 and nav_s1."""
+    root = tmp_path_factory.mktemp("study")
+    for seed in (0, 1):
+        run = tiny_runs(f"study_seed{seed}", f"seed={seed}")
+        zoo.add(run, f"nav_s{seed}", root / "zoo", condition="nav", check_scenes=2)
+    plan = _plan(
+        root,
+        BASE
+        + """
+baselines: {velocity: [nav]}
+tables: [{title: Tiny, conditions: [nav]}]
+thesis:
+  - question: Obstacle-free
+    thesis: success 1.0
+    figures: [{label: success, condition: nav, metric: success, target: ">= 0.99"}]
+""",
+    )
+    return root, plan
+
+
+@pytest.mark.slow
+@pytest.mark.xdist_group("tiny_runs")
+def test_reproduce_end_to_end(small_study, tmp_path, capsys):
+    root, plan = small_study
+    out, page = tmp_path / "results", tmp_path / "RESULTS.md"
+    args = [f"plan={plan}", f"zoo={root / 'zoo'}", f"out={out}", f"page={page}", "shard_size=4", "progress=false"]
+    reproduce_main(args)
+    assert "no data files before" in capsys.readouterr().out
+    runs = _rows(out / "runs.csv")
+    assert [(r["scene_set"], r["kind"], r["name"], r["n_scenes"]) for r in runs] == [
+        ("heldout", "baseline", "velocity", "4"),
+        ("heldout", "policy", "nav_s0", "4"),
+        ("heldout", "policy", "nav_s1", "4"),
+        ("standard", "baseline", "velocity", "6"),
+        ("standard", "policy", "nav_s0", "6"),
+        ("standard", "policy", "nav_s1", "6"),
+    ]
+
+    # a policy row is what footsim-eval gives for that zoo entry on the same scenes
+    env = {**os.environ, "FOOTSIM_ZOO": str(root / "zoo")}
+    ev = tmp_path / "ev"
+    proc = subprocess.run(
+        ["footsim-eval", "run=zoo:nav_s1", "n_scenes=6", "plot=false", f"hydra.run.dir={ev}"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=env,
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    summary = json.loads((ev / "summary.json").read_text())
+    row = runs[5]
+    for metric in ("success", "timeout", "collision", "success_time_mean", "success_steps_mean"):
+        expected = summary[metric]
+        assert (row[metric] == "") if expected is None else float(row[metric]) == pytest.approx(expected), metric
+
+    # conditions.csv: the mean over the two seeds and the IQM (trim_mean cuts nothing of two values)
+    stats = {(r["scene_set"], r["name"], r["metric"]): r for r in _rows(out / "conditions.csv")}
+    for metric in ("success", "timeout"):
+        seeds = [float(runs[4][metric]), float(runs[5][metric])]
+        cell = stats[("standard", "policy", metric)]
+        assert float(cell["mean"]) == pytest.approx(sum(seeds) / 2) and float(cell["iqm"]) == pytest.approx(
+            sum(seeds) / 2
+        )
+        assert cell["n"] == "2"
+        if seeds[0] == seeds[1]:
+            assert float(cell["ci_low"]) == float(cell["ci_high"]) == seeds[0]
+        else:  # two values: the resample means are min, mid, max; the 95 % interval spans min..max
+            assert (float(cell["ci_low"]), float(cell["ci_high"])) == (min(seeds), max(seeds))
+    assert (
+        stats[("standard", "velocity", "success")]["n"] == "1"
+        and stats[("standard", "velocity", "success")]["ci_low"] == ""
+    )
+
+    text = page.read_text()
+    assert "## Tiny" in text and "footsim-reproduce only=nav" in text
+    assert "standard: seed 20220101, 6 scenes" in text and "heldout: seed 7, 4 scenes" in text
+    assert "nav_s0, nav_s1 (trained at commit" in text and "| Obstacle-free | success 1.0 |" in text
+    assert (out / "success_by_seed.png").is_file()
+
+    # again, in two worker processes: the same cells (episode i keeps scene i and seed i in any shard)
+    before = (out / "runs.csv").read_text()
+    reproduce_main([*args, "jobs=2", "strict=true"])
+    assert "no cell differs" in capsys.readouterr().out
+    assert (out / "runs.csv").read_text() == before
+
+    # a committed cell that the evaluation does not give back is reported, and strict=true fails
+    lines = before.splitlines()
+    cells = lines[5].split(",")
+    cells[10] = "0.123"  # success of nav_s0 on the standard set
+    lines[5] = ",".join(cells)
+    (out / "runs.csv").write_text("\n".join(lines) + "\n")
+    with pytest.raises(SystemExit) as exit_info:
+        reproduce_main([*args, "only=nav", "sets=standard", "baselines=false", "strict=true"])
+    assert exit_info.value.code == 1
+    report = capsys.readouterr().out
+    assert f"nav/standard/policy/nav_s0 success: 0.123 -> {float(runs[4]['success']):.6g}" in report
+    assert (out / "runs.csv").read_text() == before  # rows not re-evaluated (held-out, baseline) are kept
+
+    # a quick look on fewer scenes does not replace the full evaluations
+    with pytest.raises(SystemExit, match=r"holds 6-scene evaluations .* n_scenes=3 would replace them"):
+        reproduce_main([*args, "n_scenes=3"])
+    assert (out / "runs.csv").read_text() == before
+
+
+def test_reproduce_refuses_unknown_keys_and_sets(tmp_path):
+    with pytest.raises(SystemExit, match="unknown key 'scenes'"):
+        reproduce_main(["scenes=10"])
+    with pytest.raises(SystemExit, match="jobs must be > 0"):
+        reproduce_main(["jobs=0"])
+    with pytest.raises(SystemExit, match=r"no scene set 'test'"):
+        reproduce_main(["sets=test", f"out={tmp_path}", f"page={tmp_path / 'p.md'}", f"zoo={tmp_path}"])
+
+
+def test_differences_names_each_changed_cell():
+    old = [{"condition": "a", "scene_set": "s", "kind": "policy", "name": "x", "success": "1.0", "fall": ""}]
+    new = [{"condition": "a", "scene_set": "s", "kind": "policy", "name": "x", "success": 0.5, "fall": math.nan}]
+    assert rp.differences(old, new, rp.KEY, ("success", "fall")) == ["a/s/policy/x success: 1 -> 0.5"]
+    added = [*new, {"condition": "b", "scene_set": "s", "kind": "policy", "name": "y", "success": 1.0, "fall": 0.0}]
+    assert rp.differences(old, added, rp.KEY, ("success",))[-1] == "b/s/policy/y: new row"
+
+
+@pytest.mark.slow
+@pytest.mark.xdist_group("tiny_runs")
+def test_reproduce_refuses_a_stale_zoo_entry_before_evaluating(small_study, tmp_path):
+    import shutil
+
+    root, plan = small_study
+    shutil.copytree(root / "zoo", tmp_path / "zoo")
+    config = tmp_path / "zoo" / "nav_s1" / "config.yaml"
+    config.write_text(config.read_text().replace("task:\n", "task:\n  goal_radius: 0.1\n", 1))
+    args = [f"plan={plan}", f"zoo={tmp_path / 'zoo'}", f"out={tmp_path / 'out'}", f"page={tmp_path / 'p.md'}"]
+    with pytest.raises(
+        SystemExit, match=r"zoo entry 'nav_s1' no longer composes .* task: unknown key\(s\) \['goal_radius'\]"
+    ):
+        reproduce_main(args)
+    assert not (tmp_path / "out").exists()

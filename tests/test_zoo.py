@@ -1,0 +1,239 @@
+"""The model zoo (footsim.zoo, footsim-zoo): add / list / show round trip, evaluation and transfer by
+zoo name, the clear errors for a bad name and a stale config, and the shipped entries (size, digests,
+their recorded check episodes reproduced exactly by footsim-eval)."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import shutil
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+from budgets import tiny_training
+
+from footsim import zoo
+from footsim.tools.zoo import main as zoo_main
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _cli(*args: str, env: dict | None = None, check: bool = True) -> subprocess.CompletedProcess:
+    proc = subprocess.run(list(args), capture_output=True, text=True, timeout=300, env={**os.environ, **(env or {})})
+    if check:
+        assert proc.returncode == 0, proc.stderr[-2000:]
+    return proc
+
+
+def _rows(path: Path) -> list[dict]:
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+@pytest.fixture(scope="module")
+def tiny_zoo(tmp_path_factory, tiny_runs):
+    """A zoo in a temporary directory holding one tiny run added with 5 check episodes."""
+    root = tmp_path_factory.mktemp("zoo")
+    run = tiny_runs("zoo_parent")
+    zoo_main(["add", str(run), "name=tiny", "condition=dev", "check_scenes=5", f"zoo={root}"])
+    return root, run
+
+
+@pytest.mark.slow
+@pytest.mark.xdist_group("tiny_runs")
+def test_round_trip_add_list_show_eval_and_init_from(tiny_zoo, tmp_path, capsys):
+    root, run = tiny_zoo
+    entry = root / "tiny"
+    assert sorted(p.name for p in entry.iterdir()) == [
+        "check_episodes.csv",
+        "config.yaml",
+        "model.zip",
+        "provenance.json",
+        "vecnormalize.pkl",
+    ]  # the tiny run was not evaluated (no summary.json) and logged no TensorBoard curve
+    assert not [p for p in root.iterdir() if p.name.startswith(".")]  # no temporaries left
+
+    prov = json.loads((entry / "provenance.json").read_text())
+    assert prov["seed"] == 0 and prov["backend"] == "pymunk" and prov["task"] == "nav"
+    assert prov["steps"] == prov["steps_total"] == 128  # the tiny budget: 2 envs x 64 steps, one rollout
+    assert prov["parent"] is None and prov["obs_size"] == 17
+    assert prov["library_versions"]["at_training (model.zip system_info)"]["Stable-Baselines3"]
+    assert len(prov["commit"]["sha"]) == 40
+
+    # the policy and value weights are the run's, bit for bit; the Adam moments are dropped
+    import torch
+    from stable_baselines3 import PPO
+
+    ours, theirs = PPO.load(entry / "model.zip").policy.state_dict(), PPO.load(run / "model.zip").policy.state_dict()
+    assert ours.keys() == theirs.keys() and all(torch.equal(ours[k], theirs[k]) for k in ours)
+    assert (entry / "model.zip").stat().st_size < 0.5 * (run / "model.zip").stat().st_size
+
+    zoo_main(["list", f"zoo={root}"])
+    listing = capsys.readouterr().out
+    assert "tiny" in listing and "dev" in listing and "128" in listing
+    zoo_main(["show", "tiny", f"zoo={root}"])
+    shown = capsys.readouterr().out
+    assert json.loads(shown[shown.index("{") :])["source_run"] == str(run.resolve())
+
+    # footsim-eval by zoo name gives the recorded episodes, number for number
+    env = {"FOOTSIM_ZOO": str(root)}
+    _cli("footsim-eval", "run=zoo:tiny", "n_scenes=5", "plot=false", f"hydra.run.dir={tmp_path / 'ev'}", env=env)
+    assert _rows(tmp_path / "ev" / "episodes.csv") == _rows(entry / "check_episodes.csv")
+
+    # footsim-train init_from=zoo:NAME, and the child added to the zoo names its zoo parent
+    child = tmp_path / "child"
+    _cli(
+        "footsim-train",
+        *tiny_training(128, "eval.after_train=false"),
+        "init_from=zoo:tiny",
+        f"hydra.run.dir={child}",
+        env=env,
+    )
+    assert json.loads((child / "parent.json").read_text())["init_from"] == str(entry.resolve())
+    zoo_main(["add", str(child), "name=tiny-child", "check_scenes=2", f"zoo={root}"])
+    child_prov = zoo.provenance("tiny-child", root)
+    assert child_prov["parent"]["zoo"] == "zoo:tiny"
+    assert (child_prov["steps"], child_prov["steps_total"]) == (128, 256)
+    assert zoo.names(root) == ["tiny", "tiny-child"]
+    assert zoo.verify("tiny", root) == [] and zoo.verify("tiny-child", root) == []
+
+
+@pytest.mark.slow
+@pytest.mark.xdist_group("tiny_runs")
+def test_bad_zoo_name_and_existing_name_give_clear_errors(tiny_zoo, tmp_path):
+    root, run = tiny_zoo
+    proc = _cli(
+        "footsim-eval", "run=zoo:nope", f"hydra.run.dir={tmp_path}", env={"FOOTSIM_ZOO": str(root)}, check=False
+    )
+    assert proc.returncode != 0 and "Traceback" not in proc.stderr
+    assert "no zoo entry 'nope'" in proc.stderr and "entries: tiny" in proc.stderr
+    with pytest.raises(zoo.ZooError, match="not valid"):
+        zoo.check_name("Bad Name")
+    with pytest.raises(SystemExit, match="exists; give force=true"):
+        zoo_main(["add", str(run), "name=tiny", f"zoo={root}"])
+    with pytest.raises(SystemExit, match="not a finished run: model.zip is missing"):
+        zoo_main(["add", str(tmp_path), "name=other", f"zoo={root}"])
+
+
+@pytest.mark.slow
+@pytest.mark.xdist_group("tiny_runs")
+def test_failed_add_leaves_the_zoo_unchanged(tiny_zoo, tmp_path, monkeypatch):
+    root, run = tiny_zoo
+    copy = tmp_path / "zoo"
+    shutil.copytree(root, copy)
+    before = {p.relative_to(copy): p.read_bytes() for p in copy.rglob("*") if p.is_file()}
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("interrupted")
+
+    monkeypatch.setattr(zoo, "check_episodes", broken)
+    with pytest.raises(RuntimeError, match="interrupted"):
+        zoo.add(run, "tiny", copy, force=True)
+    with pytest.raises(RuntimeError, match="interrupted"):
+        zoo.add(run, "new-one", copy)
+    after = {p.relative_to(copy): p.read_bytes() for p in copy.rglob("*") if p.is_file()}
+    assert after == before
+
+
+def _stale_copy(root: Path, tmp_path: Path) -> Path:
+    copy = tmp_path / "zoo"
+    shutil.copytree(root, copy)
+    return copy
+
+
+@pytest.mark.slow
+@pytest.mark.xdist_group("tiny_runs")
+@pytest.mark.parametrize(
+    ("edit", "named"),
+    [
+        (lambda cfg: cfg["task"].update(goal_tolerance=0.1), r"task: unknown key\(s\) \['goal_tolerance'\]"),
+        (lambda cfg: cfg["backend"].update(name="pymunk_old"), r"unknown backend 'pymunk_old'"),
+        (lambda cfg: cfg["walk"].update(step_freq=2.0), r"walk: unknown key\(s\) \['step_freq'\]"),
+        (lambda cfg: cfg["agent"].update(policy="mlp"), r"agent: unknown key\(s\) \['policy'\]"),
+        (lambda cfg: cfg.pop("noise"), r"the config has no noise section"),
+    ],
+)
+def test_stale_config_fails_naming_what_changed(tiny_zoo, tmp_path, edit, named):
+    import yaml
+
+    copy = _stale_copy(tiny_zoo[0], tmp_path)
+    path = copy / "tiny" / "config.yaml"
+    cfg = yaml.safe_load(path.read_text())
+    edit(cfg)
+    path.write_text(yaml.safe_dump(cfg))
+    with pytest.raises(zoo.ZooError, match=r"zoo entry 'tiny' no longer composes with this footsim: " + named):
+        zoo.resolve("zoo:tiny", copy)
+    problems = zoo.verify("tiny", copy)
+    assert any("config.yaml differs from the digest" in p for p in problems)
+    assert any("no longer composes" in p for p in problems)
+
+
+@pytest.mark.slow
+@pytest.mark.xdist_group("tiny_runs")
+def test_changed_observation_fails_naming_the_inputs(tiny_zoo, tmp_path):
+    copy = _stale_copy(tiny_zoo[0], tmp_path)
+    path = copy / "tiny" / "provenance.json"
+    prov = json.loads(path.read_text())
+    prov["obs_size"] = 19  # as if the policy had been trained on an observation with two more inputs
+    path.write_text(json.dumps(prov))
+    with pytest.raises(zoo.ZooError, match=r"task nav: its observation is now goal_and_actions 17 = 17 inputs; "):
+        zoo.check_config("tiny", copy)
+    proc = _cli(
+        "footsim-eval", "run=zoo:tiny", f"hydra.run.dir={tmp_path / 'ev'}", env={"FOOTSIM_ZOO": str(copy)}, check=False
+    )
+    assert proc.returncode != 0 and "the policy reads 19" in proc.stderr and "Traceback" not in proc.stderr
+
+
+# -- the shipped zoo ----------------------------------------------------------------------------
+SHIPPED = zoo.names(REPO / "footsim" / "zoo")
+
+
+def test_shipped_zoo_is_small_and_intact():
+    root = REPO / "footsim" / "zoo"
+    assert SHIPPED, "the repository ships no zoo entry"
+    assert zoo.total_size(root) <= 30e6
+    for name in SHIPPED:
+        prov = zoo.provenance(name, root)
+        listed = set(prov["files"]) | {"provenance.json"}
+        assert listed == {p.name for p in (root / name).iterdir()}, name  # no unlisted file ships
+        assert zoo.verify(name, root) == [], name
+
+
+@pytest.mark.slow
+def test_shipped_policy_reproduces_its_recorded_episodes(tmp_path):
+    """footsim-eval on the first 20 scenes of the standard set gives the episodes recorded when the
+    entry was added, to the last digit (outcome, time, steps, return, final pose)."""
+    name = SHIPPED[0]
+    root = REPO / "footsim" / "zoo"
+    recorded = _rows(root / name / "check_episodes.csv")
+    assert len(recorded) == 20
+    env = {k: v for k, v in os.environ.items() if k != "FOOTSIM_ZOO"}
+    proc = subprocess.run(
+        ["footsim-eval", f"run=zoo:{name}", "n_scenes=20", "plot=false", f"hydra.run.dir={tmp_path}"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=env,
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert _rows(tmp_path / "episodes.csv") == recorded
+
+
+@pytest.mark.slow
+def test_wheel_carries_the_zoo_and_the_study_plan(tmp_path):
+    subprocess.run(
+        [sys.executable, "-m", "build", "--wheel", "--outdir", str(tmp_path), str(REPO)],
+        check=True,
+        capture_output=True,
+        timeout=300,
+    )
+    with zipfile.ZipFile(next(tmp_path.glob("footsim-*.whl"))) as wheel:
+        names = set(wheel.namelist())
+    assert "footsim/zoo/index.json" in names and "footsim/conf/study/v1.yaml" in names
+    for name in SHIPPED:
+        for file in ("model.zip", "config.yaml", "provenance.json", "check_episodes.csv"):
+            assert f"footsim/zoo/{name}/{file}" in names
