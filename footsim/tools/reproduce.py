@@ -3,7 +3,7 @@ data files, the results page and its plots, and report the cells that changed
 (:mod:`footsim.results.reproduce`); ``train=true`` runs the study's trainings instead.
 
 Keys: ``plan`` (default conf/study/v1.yaml), ``zoo`` (default $FOOTSIM_ZOO or footsim/zoo),
-``out`` (data files and plots, default docs/results), ``page`` (default docs/RESULTS.generated.md),
+``out`` (data files and plots, default docs/results), ``page`` (default docs/RESULTS.md),
 ``only`` (2d, 3d or condition names, comma-separated), ``sets`` (scene sets, default all),
 ``n_scenes`` (at most this many scenes per set), ``jobs`` (worker processes, default 1),
 ``shard_size`` (scenes per task, default 50), ``baselines`` (true), ``plots`` (true), ``progress``
@@ -23,7 +23,7 @@ DEFAULTS: dict[str, str | None] = {
     "plan": None,
     "zoo": None,
     "out": "docs/results",
-    "page": "docs/RESULTS.generated.md",
+    "page": "docs/RESULTS.md",
     "only": None,
     "sets": None,
     "n_scenes": None,
