@@ -105,7 +105,7 @@ class PybulletBackendConfig(Physics3DConfig):
     spinning_friction: float = MISSING
     rolling_friction: float = MISSING
     position_gain_scale: float = MISSING
-    position_gain: Optional[float] = MISSING
+    position_rate: Optional[float] = MISSING
     velocity_gain: float = MISSING
     motor_max_velocity: bool = MISSING
     solver_iterations: int = MISSING

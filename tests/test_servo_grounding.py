@@ -260,21 +260,22 @@ def _first_tick_velocity(spec, error: float, **options) -> float:
 
 
 def test_pybullet_position_gain_is_bullets_velocity_constraint(spec):
-    """``backend.position_gain`` is Bullet's positionGain on every joint: its position motor targets
-    the velocity positionGain / dt · (q* − q) (Bullet's velocity-constraint form, velocityGain 1 from
-    rest), so a 0.01 rad step moves the hip yaw at 0.1 · 240 · 0.01 = 0.24 rad/s after one tick; the
-    servo mapping (position_gain null, scale 1) gives positionGain kp · dt / kd = 45 / 1.7 / 240 and so
+    """``backend.position_rate`` r sets Bullet's positionGain to r · dt on every joint: its position
+    motor targets the velocity positionGain / dt · (q* − q) = r · (q* − q) (Bullet's velocity-constraint
+    form, velocityGain 1 from rest), so at r = 24 /s (positionGain 0.1 at 1/240 s) a 0.01 rad step
+    moves the hip yaw at 0.24 rad/s after one tick; the
+    servo mapping (position_rate null, scale 1) gives positionGain kp · dt / kd = 45 / 1.7 / 240 and so
     kp / kd · 0.01 = 0.265 rad/s.  (At much smaller gains the solver's 10 iterations fall short of the
     target: 0.05 reaches 0.10, not 0.12.)"""
-    assert _first_tick_velocity(spec, 0.01, position_gain=0.1) == pytest.approx(0.1 * 240 * 0.01, rel=0.02)
-    mapped = _first_tick_velocity(spec, 0.01, position_gain=None, position_gain_scale=1.0)
+    assert _first_tick_velocity(spec, 0.01, position_rate=24.0) == pytest.approx(24.0 * 0.01, rel=0.02)
+    mapped = _first_tick_velocity(spec, 0.01, position_rate=None, position_gain_scale=1.0)
     assert mapped == pytest.approx(45 / 1.7 * 0.01, rel=0.02)
 
 
-@pytest.mark.parametrize("gain", [0.0, 1.5, float("nan")])
-def test_pybullet_position_gain_out_of_range_is_refused(gain):
+@pytest.mark.parametrize("rate", [0.0, -24.0, float("nan")])
+def test_pybullet_position_rate_out_of_range_is_refused(rate):
     pytest.importorskip("pybullet")
     from footsim.backends.bullet.sim import PybulletSim
 
-    with pytest.raises(ValueError, match=r"backend\.position_gain must be in \(0, 1\] or null"):
-        PybulletSim(position_gain=gain)
+    with pytest.raises(ValueError, match=r"backend\.position_rate must be a positive rate \[1/s\] or null"):
+        PybulletSim(position_rate=rate)

@@ -22,9 +22,11 @@ damping ``kd`` whose inertia is small against ``kd`` (the overdamped limit) sett
     positionGain = position_gain_scale · kp · dt / damping
 
 (Wolfgang's leg servos: kp 45, damping 1.7 → time constant kd/kp = 38 ms; dt 1/240 s → 0.110 ·
-scale; Bullet caps it at 1), unless ``position_gain`` fixes positionGain for every joint: the
-FootstepNav-v1 preset sets Bullet's default 0.1, which the Bit-Bots' PyBullet simulation runs (it
-passes no gain); docs/BACKENDS.md has the measurements.  Bullet's own joint damping is off
+scale; Bullet caps it at 1), unless ``position_rate`` [1/s] sets every joint's motor to
+``q̇ = position_rate · (q* − q)``, i.e. positionGain = position_rate · dt: the FootstepNav-v1 preset
+sets 24 /s, Bullet's default positionGain 0.1 at the Bit-Bots' 1/240 s, which their PyBullet
+simulation runs (it passes no gain).  A rate, not a gain, so that a timestep change keeps the same
+servo (docs/BACKENDS.md has the measurements).  Bullet's own joint damping is off
 (``_build_world``); the joint's default velocity motor (the URDF friction) is replaced by the
 position motor.
 
@@ -109,7 +111,7 @@ class PybulletSim(PhysicsSim):
         spinning_friction: float = 0.1,
         rolling_friction: float = 0.1,
         position_gain_scale: float = 1.0,
-        position_gain: float | None = None,
+        position_rate: float | None = None,
         velocity_gain: float = 1.0,
         motor_max_velocity: bool = False,
         solver_iterations: int = 50,
@@ -134,8 +136,8 @@ class PybulletSim(PhysicsSim):
                 raise ValueError(f"backend.{key} must be a non-negative number, got {value!r}")
         if not (math.isfinite(position_gain_scale) and position_gain_scale > 0):
             raise ValueError(f"backend.position_gain_scale must be positive, got {position_gain_scale!r}")
-        if position_gain is not None and not (math.isfinite(position_gain) and 0 < position_gain <= 1):
-            raise ValueError(f"backend.position_gain must be in (0, 1] or null, got {position_gain!r}")
+        if position_rate is not None and not (math.isfinite(position_rate) and position_rate > 0):
+            raise ValueError(f"backend.position_rate must be a positive rate [1/s] or null, got {position_rate!r}")
         if int(solver_iterations) < 1:
             raise ValueError(f"backend.solver_iterations must be >= 1, got {solver_iterations!r}")
         if motor not in ("position", "servo"):
@@ -162,7 +164,7 @@ class PybulletSim(PhysicsSim):
         self.spinning_friction = float(spinning_friction)
         self.rolling_friction = float(rolling_friction)
         self.position_gain_scale = float(position_gain_scale)
-        self.position_gain = None if position_gain is None else float(position_gain)
+        self.position_rate = None if position_rate is None else float(position_rate)
         self.velocity_gain = float(velocity_gain)
         if not isinstance(motor_max_velocity, (bool, np.bool_)):
             raise ValueError(f"backend.motor_max_velocity must be true or false, got {motor_max_velocity!r}")
@@ -588,10 +590,10 @@ class PybulletSim(PhysicsSim):
 
     # -- randomization --------------------------------------------------------------------
     def _nominal_gain(self, joint) -> float:
-        """A joint's Bullet positionGain before randomization and the cap: ``position_gain`` when
-        set, else the module docstring's mapping of its servo, scale · kp · dt / kd."""
-        if self.position_gain is not None:
-            return self.position_gain
+        """A joint's Bullet positionGain before randomization and the cap: ``position_rate`` · dt
+        when the rate is set, else the module docstring's mapping of its servo, scale · kp · dt / kd."""
+        if self.position_rate is not None:
+            return self.position_rate * self.physics_dt
         return self.position_gain_scale * joint.servo.kp * self.physics_dt / max(joint.servo.damping, 1e-6)
 
     def _motor_gain(self, name: str) -> float:
