@@ -221,7 +221,7 @@ def test_v0_random_steps_do_not_fall_and_rolling_friction_is_why():
     """FootstepNav-v0 (the simplified robot, its tuned gait and MuJoCo settings): uniform random
     double steps over the full limits do not fall, and only because of the feet's rolling friction
     (0.15 m, twice the old sole's half length): without it seed 2008 falls (every one of 20 random
-    sequences fell, docs/RESULTS.md, session 5).  FootstepNav-v1 has no such friction."""
+    sequences fell, session 5: git show 94a1e0b:docs/RESULTS.md).  FootstepNav-v1 has no such friction."""
     from footsim import config as fconf
 
     backend = fconf.build_backend(
