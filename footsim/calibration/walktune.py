@@ -7,7 +7,7 @@ Measures the Hamburg Bit-Bots' walk-tuning objective (shared/FACTS.md, "Quintic 
 
 for the composed ``walk`` group on a 3D backend and returns it (higher is better), so that a
 Hydra sweep with footsim's Optuna sweeper tunes the walk (``footsim-walktune -m
-+hpo=walk_pybullet``, see ``conf/hpo/walk.yaml`` and docs/RESULTS.md).
++hpo=walk_pybullet``, see ``conf/hpo/walk.yaml``).
 
 Each direction (forward, backward, lateral, turn; with ``tune.symmetric`` lateral and turn are
 measured to both sides and averaged) is one episode from standing: the commanded speed is

@@ -69,7 +69,7 @@ class NavTaskConfig:
     #: whether touching an obstacle ends the episode; None: by backend kind (2D yes, as in the
     #: thesis; 3D no, the contact is reported in ``info``), resolved by :class:`NavTask`
     collision_ends_episode: bool | None = None
-    # Options beyond the thesis (off by default; docs/RESULTS.md measures their effect):
+    # Options beyond the thesis (off by default; measured on FootstepNav-v0, git show 94a1e0b:docs/RESULTS.md):
     observe_imu: bool = False  # append tanh(roll / imu_scale), tanh(pitch / ·), tanh(max tilt / ·)
     imu_scale: float = 0.35  # [rad]
     path_hint: bool = False  # append sin, cos of the bearing to a point on a global grid path (thesis ch. 9)
