@@ -111,7 +111,7 @@ def _rect_hits_circle_sampled(pose: Pose2D, half_l, half_w, o: Obstacle) -> bool
 @pytest.mark.parametrize("seed", [3, 8])
 def test_footstep_plan_within_limits_and_clear_of_obstacles(seed):
     scene = sample_scenes(SceneSampler(obstacles=True), 1, seed=seed)[0]
-    planner = FootstepPlanner(GEOMETRY, TRUNK, scene, FootstepParams(time_budget_s=2.0, epsilons=(2.0,)))
+    planner = FootstepPlanner(GEOMETRY, TRUNK, scene, FootstepParams(expansion_budget=None, time_budget_s=2.0, epsilons=(2.0,)))
     feet = GEOMETRY.initial_feet()
     plan = planner.plan(feet.left, feet.right)
     assert plan.status == "ok", plan.status
@@ -225,7 +225,7 @@ def test_search_stops_at_its_time_budget(monkeypatch):
     import footsim.planners.footstep as footstep
 
     budget = 0.02
-    planner = FootstepPlanner(GEOMETRY, TRUNK, Scene(Pose2D(3.0, 1.0, 2.0), ()), FootstepParams(time_budget_s=budget))
+    planner = FootstepPlanner(GEOMETRY, TRUNK, Scene(Pose2D(3.0, 1.0, 2.0), ()), FootstepParams(expansion_budget=None, time_budget_s=budget))
     feet = GEOMETRY.initial_feet()
     planner.plan(feet.left, feet.right)  # warm-up on the real clock
     monkeypatch.setattr(footstep, "time", _TickingClock())
@@ -234,11 +234,45 @@ def test_search_stops_at_its_time_budget(monkeypatch):
     assert 0 < plan.expanded < budget / 1e-3  # at most one expansion per reading
 
 
+class _SlowClock:
+    """A clock on which every reading is a second later: any wall-clock budget is over at once."""
+
+    def __init__(self):
+        self.now = 0.0
+
+    def perf_counter(self):
+        self.now += 1.0
+        return self.now
+
+
+def test_expansion_budget_makes_plans_independent_of_the_clock(monkeypatch):
+    """With expansion_budget the search ends after exactly that many expansions whatever the clock
+    says (the same plan under a normal and an absurdly slow clock), and a larger budget, which
+    continues the same deterministic search, never returns a costlier plan."""
+    import footsim.planners.footstep as footstep
+
+    scene = sample_scenes(SceneSampler(obstacles=True), 1, seed=8)[0]
+    feet = GEOMETRY.initial_feet()
+
+    def plan(budget):
+        return FootstepPlanner(GEOMETRY, TRUNK, scene, FootstepParams(expansion_budget=budget)).plan(feet.left, feet.right)
+
+    small, large = plan(150), plan(1500)
+    assert small.expanded == 150 and large.expanded <= 1500
+    assert small.status == large.status == "ok"
+    assert large.cost <= small.cost + 1e-12
+    monkeypatch.setattr(footstep, "time", _SlowClock())
+    again = plan(150)
+    assert again.expanded == 150 and again.steps == small.steps and again.cost == small.cost
+    with pytest.raises(ValueError, match="expansion_budget"):
+        FootstepParams(expansion_budget=0)
+
+
 def test_unreachable_and_blocked_goals_fail_without_searching(monkeypatch):
     import footsim.planners.footstep as footstep
 
     monkeypatch.setattr(footstep, "time", _TickingClock())
-    params = FootstepParams(time_budget_s=0.05)
+    params = FootstepParams(expansion_budget=None, time_budget_s=0.05)
     feet = GEOMETRY.initial_feet()
     inside = Scene(Pose2D(1.0, 0.0, 0.0), (Obstacle(1.05, 0.0, 0.2),))
     for scene, status in ((_ring_scene(), "unreachable"), (inside, "goal_in_collision")):
@@ -259,7 +293,7 @@ def test_footstep_planner_respects_budget_on_hard_scenes():
     scenes = sample_scenes(SceneSampler(obstacles=True), 6, seed=21)
     feet = GEOMETRY.initial_feet()
     for scene in scenes:
-        planner = FootstepPlanner(GEOMETRY, TRUNK, scene, FootstepParams(time_budget_s=0.02))
+        planner = FootstepPlanner(GEOMETRY, TRUNK, scene, FootstepParams(expansion_budget=None, time_budget_s=0.02))
         plan = planner.plan(feet.left, feet.right)
         assert plan.time_s < 0.02 + 0.05
         assert plan.status in ("ok", "partial", "unreachable", "goal_in_collision")

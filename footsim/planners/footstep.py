@@ -18,7 +18,9 @@
   expansion tries the double step that puts the feet exactly beside the goal pose.
 * **Anytime (ARA*-style)**: weighted A* with ε from ``epsilons`` (e.g. 3 → 1); each finished
   search is followed by one with the next ε and the best plan so far as an upper bound (nodes
-  with g + h ≥ best cost are pruned), until ``time_budget_s`` runs out.  Without any plan when
+  with g + h ≥ best cost are pruned), until the budget runs out: ``expansion_budget`` node
+  expansions (the default: the clock is not read, so a plan is the same on any machine and under
+  any load), or with it None ``time_budget_s`` of wall-clock time.  Without any plan when
   the budget ends, the plan to the expanded node nearest the goal (by heuristic) is returned as
   ``partial``; an exhausted search space is ``unreachable``; a goal whose feet or trunk overlap
   an obstacle is ``goal_in_collision``.  The planner never runs past its budget by more than
@@ -49,7 +51,11 @@ from footsim.walk.footsteps import DoubleStep, Footstep, FootstepGeometry, Side
 class FootstepParams:
     """Planner parameters (conf/controller/footstep.yaml documents them)."""
 
-    time_budget_s: float = 0.045  # per plan (anytime: the whole budget is used; 45 ms keeps the median under 50 ms)
+    time_budget_s: float = 0.045  # per plan, with expansion_budget None (anytime: the whole budget is used)
+    # Node expansions per plan over all anytime iterations; when set it replaces time_budget_s, so
+    # plans do not depend on the machine or its load (300 ≈ 45 ms on the 2-core reference machine).
+    # None: the wall-clock budget.
+    expansion_budget: int | None = 300
     epsilons: tuple = (3.0, 2.0, 1.5, 1.2, 1.0)  # heuristic weights of the anytime iterations
     x_fracs: tuple = (-0.5, 0.0, 0.5, 1.0)  # forward step / limits.x
     y_fracs: tuple = (0.0, 0.5, 1.0)  # outward lateral step / limits.y (negative = inward)
@@ -75,6 +81,8 @@ class FootstepParams:
     def __post_init__(self) -> None:
         if not self.time_budget_s > 0:
             raise ValueError(f"controller.time_budget_s must be > 0, got {self.time_budget_s!r}")
+        if self.expansion_budget is not None and not int(self.expansion_budget) >= 1:
+            raise ValueError(f"controller.expansion_budget must be >= 1 or null, got {self.expansion_budget!r}")
         if not self.epsilons or any(e < 1.0 for e in self.epsilons):
             raise ValueError(f"controller.epsilons must be a non-empty list of weights >= 1, got {self.epsilons!r}")
         for key in ("x_fracs", "y_fracs", "theta_fracs"):
@@ -354,7 +362,9 @@ class FootstepPlanner:
         """
         t0 = time.perf_counter()
         budget = self.params.time_budget_s if budget_s is None else budget_s
-        deadline = t0 + budget
+        by_expansions = self.params.expansion_budget is not None
+        deadline = math.inf if by_expansions else t0 + budget
+        expansions_left = int(self.params.expansion_budget) if by_expansions else math.inf
         if self.goal_status != "ok":
             return FootstepPlan(self.goal_status, time_s=time.perf_counter() - t0)
         nav = mean_pose(left, right)
@@ -373,7 +383,9 @@ class FootstepPlanner:
             exhausted = False  # closer than the margin), search again without it
             self._active_rects = rects
             for eps in self.params.epsilons:
-                result = self._weighted_astar(left, right, eps, best.cost if best else math.inf, deadline)
+                result = self._weighted_astar(
+                    left, right, eps, best.cost if best else math.inf, deadline, expansions_left - expanded_total
+                )
                 expanded_total += result["expanded"]
                 if result["partial"] is not None and (best_partial is None or result["partial"][0] < best_partial[0]):
                     best_partial = result["partial"]
@@ -387,9 +399,9 @@ class FootstepPlanner:
                 if result["plan"] is None and best is None:
                     exhausted = True
                     break
-                if time.perf_counter() >= deadline:
+                if time.perf_counter() >= deadline or expanded_total >= expansions_left:
                     break
-            if not exhausted or time.perf_counter() >= deadline:
+            if not exhausted or time.perf_counter() >= deadline or expanded_total >= expansions_left:
                 break
         self._active_rects = self.rects
         elapsed = time.perf_counter() - t0
@@ -441,7 +453,9 @@ class FootstepPlanner:
         poses += [(side, pose) for side, _, pose in shot[0]]
         return FootstepPlan("ok", steps, poses, cost=cost + shot[1], epsilon=previous.epsilon)
 
-    def _weighted_astar(self, left: Pose2D, right: Pose2D, eps: float, bound: float, deadline: float) -> dict:
+    def _weighted_astar(
+        self, left: Pose2D, right: Pose2D, eps: float, bound: float, deadline: float, expansions_left: float
+    ) -> dict:
         p = self.params
         inv_res, nbins = 1.0 / p.lattice_xy, int(p.lattice_theta_bins)
         inv_bin = nbins / (2 * math.pi)
@@ -460,7 +474,7 @@ class FootstepPlanner:
         timed_out = False
         side_bit = {Side.LEFT: 0, Side.RIGHT: 1}
         while open_heap:
-            if time.perf_counter() >= deadline:
+            if expanded >= expansions_left or time.perf_counter() >= deadline:
                 timed_out = True
                 break
             f, g, n = heapq.heappop(open_heap)
