@@ -213,6 +213,7 @@ class AgentConfig:
     net_arch: NetArchConfig = MISSING
     activation: str = MISSING
     learning_rate: float = MISSING
+    lr_schedule: str = MISSING
     n_steps: int = MISSING
     batch_size: int = MISSING
     n_epochs: int = MISSING

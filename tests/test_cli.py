@@ -173,6 +173,7 @@ def test_baseline_evaluation_applies_the_randomization_preset(tmp_path):
         ("train.n_envs=0", "train.n_envs must be a positive integer"),
         ("noise.sigma_x=-0.1", "noise.sigma_x must be a number >= 0"),
         ("task.scenes.ball_radius=-0.1", "task.scenes.ball_radius must be a positive number"),
+        ("agent.lr_schedule=cosine", "agent.lr_schedule must be one of"),
     ],
 )
 def test_bad_config_fails_at_start_naming_the_key(tmp_path, override, message):

@@ -164,3 +164,15 @@ def test_a_global_preset_writing_an_unknown_key_fails_naming_it(tmp_path):
     with pytest.raises(ConfigCompositionException) as err:
         fconf.compose("config", [f"hydra.searchpath=[file://{tmp_path}]", "+experiment=typo"])
     assert "sede" in str(err.value) + str(err.value.__cause__)
+
+
+def test_linear_learning_rate_schedule_decays_to_zero_over_the_run():
+    """SB3 calls the schedule with the share of the run still to go (1 → 0); hand values."""
+    from footsim.rl.common import learning_rate_schedule
+
+    agent = OmegaConf.create({"learning_rate": 4.0e-4, "lr_schedule": "linear"})
+    schedule = learning_rate_schedule(agent)
+    assert [schedule(p) for p in (1.0, 0.25, 0.0)] == pytest.approx([4.0e-4, 1.0e-4, 0.0])
+    assert learning_rate_schedule(OmegaConf.create({"learning_rate": 4.0e-4, "lr_schedule": "constant"})) == 4.0e-4
+    # a run saved before the key existed trains at its constant rate
+    assert learning_rate_schedule(OmegaConf.create({"learning_rate": 4.0e-4})) == 4.0e-4

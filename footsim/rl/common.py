@@ -86,6 +86,8 @@ def validate_train_config(cfg: DictConfig) -> None:
         raise ValueError("agent.gamma and agent.gae_lambda must be <= 1")
     if cfg.agent.ent_coef < 0:
         raise ValueError(f"agent.ent_coef must be >= 0, got {cfg.agent.ent_coef!r}")
+    if cfg.agent.get("lr_schedule", "constant") not in LR_SCHEDULES:
+        raise ValueError(f"agent.lr_schedule must be one of {LR_SCHEDULES}, got {cfg.agent.lr_schedule!r}")
     if cfg.agent.activation not in ("tanh", "relu"):
         raise ValueError(f"agent.activation must be tanh or relu, got {cfg.agent.activation!r}")
     if cfg.agent.get("distribution", "gaussian") not in ("gaussian", "beta"):
@@ -95,6 +97,18 @@ def validate_train_config(cfg: DictConfig) -> None:
     # the task's and the noise's own checks, here before the env workers (and torch) start
     build_task(plain_config(cfg.task))
     build_noise(plain_config(cfg.noise))
+
+
+LR_SCHEDULES = ("constant", "linear")
+
+
+def learning_rate_schedule(agent: DictConfig):
+    """SB3's learning rate: a float (constant) or a function of the remaining share of the run
+    (1 at the first update, 0 at the last): ``linear`` decays ``learning_rate`` to 0 over the run."""
+    rate = float(agent.learning_rate)
+    if agent.get("lr_schedule", "constant") == "constant":
+        return rate
+    return lambda progress_remaining: rate * progress_remaining
 
 
 def policy_class(agent: DictConfig):
