@@ -111,7 +111,9 @@ def _rect_hits_circle_sampled(pose: Pose2D, half_l, half_w, o: Obstacle) -> bool
 @pytest.mark.parametrize("seed", [3, 8])
 def test_footstep_plan_within_limits_and_clear_of_obstacles(seed):
     scene = sample_scenes(SceneSampler(obstacles=True), 1, seed=seed)[0]
-    planner = FootstepPlanner(GEOMETRY, TRUNK, scene, FootstepParams(expansion_budget=None, time_budget_s=2.0, epsilons=(2.0,)))
+    planner = FootstepPlanner(
+        GEOMETRY, TRUNK, scene, FootstepParams(expansion_budget=None, time_budget_s=2.0, epsilons=(2.0,))
+    )
     feet = GEOMETRY.initial_feet()
     plan = planner.plan(feet.left, feet.right)
     assert plan.status == "ok", plan.status
@@ -225,7 +227,9 @@ def test_search_stops_at_its_time_budget(monkeypatch):
     import footsim.planners.footstep as footstep
 
     budget = 0.02
-    planner = FootstepPlanner(GEOMETRY, TRUNK, Scene(Pose2D(3.0, 1.0, 2.0), ()), FootstepParams(expansion_budget=None, time_budget_s=budget))
+    planner = FootstepPlanner(
+        GEOMETRY, TRUNK, Scene(Pose2D(3.0, 1.0, 2.0), ()), FootstepParams(expansion_budget=None, time_budget_s=budget)
+    )
     feet = GEOMETRY.initial_feet()
     planner.plan(feet.left, feet.right)  # warm-up on the real clock
     monkeypatch.setattr(footstep, "time", _TickingClock())
@@ -255,7 +259,9 @@ def test_expansion_budget_makes_plans_independent_of_the_clock(monkeypatch):
     feet = GEOMETRY.initial_feet()
 
     def plan(budget):
-        return FootstepPlanner(GEOMETRY, TRUNK, scene, FootstepParams(expansion_budget=budget)).plan(feet.left, feet.right)
+        return FootstepPlanner(GEOMETRY, TRUNK, scene, FootstepParams(expansion_budget=budget)).plan(
+            feet.left, feet.right
+        )
 
     small, large = plan(150), plan(1500)
     assert small.expanded == 150 and large.expanded <= 1500

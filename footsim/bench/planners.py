@@ -67,7 +67,9 @@ def bench_planners(
                 rows.append(_row(label, times))
             else:
                 budget = ctrl.params.expansion_budget
-                budget_text = f"{budget} expansions" if budget is not None else f"{ctrl.params.time_budget_s * 1e3:.0f} ms"
+                budget_text = (
+                    f"{budget} expansions" if budget is not None else f"{ctrl.params.time_budget_s * 1e3:.0f} ms"
+                )
                 label = f"footstep: anytime A* per double step, budget {budget_text}"
                 rows.append(_row(label, times, {"complete plan within budget": complete / max(plans, 1)}))
                 rows.append(_row("footstep: time to first complete plan", first))
