@@ -44,7 +44,6 @@ interval, so the last tick of a double step is the put-down instant of the secon
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass, field
 from enum import IntEnum
@@ -513,7 +512,7 @@ class QuinticWalk:
         plan = plans[h]
         if plan.kind not in (WalkState.START_STEP, WalkState.WALKING) or trajectory.executed is None:
             raise ValueError(f"tick {k} is in a {plan.kind.name} half step: no flying foot to end it")
-        local_time = float(plan.tick_times[k - int(np.searchsorted(layout.half_step, h))])
+        local_time = float(plan.tick_times[k - (layout.half_step_ends[h - 1] if h else 0)])
         flying = plan.support.other
         foot = trajectory.local_poses[0 if flying is Side.LEFT else 1, :, k]
         touchdown, height = Pose2D(float(foot[X]), float(foot[Y]), float(foot[YAW])), float(foot[Z])
@@ -533,12 +532,12 @@ class QuinticWalk:
         if i == 1:  # the call ends here
             self._feet = feet  # type: ignore[assignment]
             self._last_call = None
-            empty = self._empty_trajectory()
-            return dataclasses.replace(empty, executed=DoubleStep(steps[0], steps[1]), interfered=trajectory.interfered)
+            return self._empty_trajectory(DoubleStep(steps[0], steps[1]), trajectory.interfered)
         second = plans[h + 1]
         before = FeetState(*(placed if side is flying else plan.support_pose for side in (Side.LEFT, Side.RIGHT)))
-        rest = self._plan(second.kind, flying, before, touchdown.inverse(), second.landing, self.half_period, 0.5, 0.5)
-        rest = dataclasses.replace(rest, last_z=-height)
+        rest = self._plan(
+            second.kind, flying, before, touchdown.inverse(), second.landing, self.half_period, 0.5, 0.5, -height
+        )
         after = before.with_foot(plan.support, placed.compose(second.landing))
         return self._run([rest], DoubleStep(steps[0], steps[1]), after, trajectory.interfered)
 
@@ -565,7 +564,7 @@ class QuinticWalk:
 
     # --- planning ------------------------------------------------------------------------
 
-    def _plan(self, kind, support, feet, last, landing, duration, phase_start, phase_span) -> _HalfStep:
+    def _plan(self, kind, support, feet, last, landing, duration, phase_start, phase_span, last_z=0.0) -> _HalfStep:
         n_ticks = int(round(duration / self.control_dt))
         return _HalfStep(
             kind=kind,
@@ -577,6 +576,7 @@ class QuinticWalk:
             tick_times=np.arange(1, n_ticks + 1) * self.control_dt,
             phase_start=phase_start,
             phase_span=phase_span,
+            last_z=last_z,
         )
 
     def _half_step_plans(self, halves) -> list[_HalfStep]:
@@ -897,13 +897,14 @@ class QuinticWalk:
             half_step_ends=layout.half_step_ends,
         )
 
-    def _empty_trajectory(self) -> WalkTrajectory:
+    def _empty_trajectory(self, executed: DoubleStep | None = None, interfered: int = 0) -> WalkTrajectory:
         return WalkTrajectory(
             dt=self.control_dt,
             t=np.zeros(0),
             phase=np.zeros(0),
             support=np.zeros(0, dtype=bool),
             state=np.zeros(0, dtype=np.int8),
-            executed=None,
+            executed=executed,
             feet=self._feet,
+            interfered=interfered,
         )
