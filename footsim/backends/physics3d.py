@@ -520,13 +520,13 @@ class Physics3DBackend(Backend):
         one tick of the module docstring: read the state, the control law (stabilizer unless
         ``stabilized`` is False, latency, servo feed-forward), send the commands, the push
         schedule, and the physics of one control period."""
-        targets, trunk = trajectory.joint_targets, trajectory.trunk_in_support  # roll, pitch: as in .trunk
         gains = self._stabilizer_gains if (stabilized and self.stabilizer.active) else None
         walk = self.walk_current
         pid = self.trunk_pid if (stabilized and self.trunk_pid.active) else None
         reset = stabilized and walk.phase_reset_foot_pressure_active
         if walk.engine_freq is not None or pid is not None or reset:
             return self._node_ticks(trajectory, gains, pid, reset)
+        targets, trunk = trajectory.joint_targets, trajectory.trunk_in_support  # roll, pitch: as in .trunk
         delay, slot = self._delay_line(), self._delay_slot
         tick = self._control_tick(targets, trunk, gains, delay)
         (quat, w_last, frame, feed_forward, command, leg_ids), read, write, push = self._tick_io(gains is not None)
