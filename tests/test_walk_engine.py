@@ -17,7 +17,7 @@ from footsim.walk import (
     WalkParams,
     WalkState,
 )
-from footsim.walk.ik import leg_fk, rpy_from_rotation
+from footsim.walk.ik import leg_fk, legs_ik, rpy_from_rotation
 
 LIMITS = StepLimits(0.156, 0.103, 0.764)
 LEG = LegGeometry()
@@ -271,6 +271,22 @@ def test_joint_targets_are_sane_and_never_nan():
     moderate = make_engine()
     trajs = [moderate.double_step(ds) for ds in random_double_steps(10, 0.5, seed=32)]
     assert all(t.reachable.all() for t in trajs)
+
+
+def test_joint_targets_solved_a_half_step_at_a_time_are_the_batch_ik():
+    """``WalkTrajectory.solve`` (the 3D driver's, a half step at a time) gives the bits of the
+    batch IK of all ticks (``legs_ik``), and solves no further than the half step it needs."""
+    limits = np.tile([-1.2, 1.2], (12, 1))
+    engine = make_engine(joint_limits=limits)
+    for ds in random_double_steps(4, 0.8, seed=33):
+        traj = engine.double_step(ds)
+        local = traj.local_poses
+        expected, reachable = legs_ik(local[2], local[0], local[1], LEG, limits)
+        first_half = traj.half_step_ends[-2]
+        joints, ok, solved = traj.solve(first_half - 3)
+        assert solved == first_half
+        assert np.array_equal(joints[:solved], expected[:solved]) and np.array_equal(ok[:solved], reachable[:solved])
+        assert np.array_equal(traj.joint_targets, expected) and np.array_equal(traj.reachable, reachable)
 
 
 def test_joint_limits_are_applied_and_reported():

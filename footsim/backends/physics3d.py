@@ -520,13 +520,13 @@ class Physics3DBackend(Backend):
         one tick of the module docstring: read the state, the control law (stabilizer unless
         ``stabilized`` is False, latency, servo feed-forward), send the commands, the push
         schedule, and the physics of one control period."""
-        targets, trunk = trajectory.joint_targets, trajectory.trunk_in_support  # roll, pitch: as in .trunk
         gains = self._stabilizer_gains if (stabilized and self.stabilizer.active) else None
         walk = self.walk_current
         pid = self.trunk_pid if (stabilized and self.trunk_pid.active) else None
         reset = stabilized and walk.phase_reset_foot_pressure_active
         if walk.engine_freq is not None or pid is not None or reset:
             return self._node_ticks(trajectory, gains, pid, reset)
+        targets, trunk = trajectory.joint_targets, trajectory.trunk_in_support  # roll, pitch: as in .trunk
         delay, slot = self._delay_line(), self._delay_slot
         tick = self._control_tick(targets, trunk, gains, delay)
         (quat, w_last, frame, feed_forward, command, leg_ids), read, write, push = self._tick_io(gains is not None)
@@ -559,7 +559,10 @@ class Physics3DBackend(Backend):
         engine time) has moved on since the last one: at most ``engine_freq`` updates a second,
         each seen at the first control tick at or after its instant."""
         walk = self.walk_current
-        targets, trunk = trajectory.joint_targets.copy(), trajectory.trunk_in_support.copy()
+        # The trajectory's targets, copied as the run reaches them (solving a half step at a time:
+        # a phase reset leaves the rest unsolved), and written in place by the node.
+        targets, trunk = np.empty((len(trajectory), 12)), trajectory.trunk_in_support.copy()
+        solve, copied = trajectory.solve, 0
         delay, slot = self._delay_line(), self._delay_slot
         reads_state = gains is not None or pid is not None
         (quat, w_last, frame, feed_forward, command, leg_ids), read, write, push = self._tick_io(reads_state)
@@ -582,6 +585,11 @@ class Physics3DBackend(Backend):
         threshold = walk.phase_reset_ground_min_pressure
 
         def run(k0: int, k1: int) -> int | None:
+            nonlocal copied
+            if k1 > copied:
+                joints, _, solved = solve(k1)
+                targets[copied:solved] = joints[copied:solved]
+                copied = solved
             for k in range(k0, k1):
                 if read is not None:
                     read()
@@ -686,7 +694,7 @@ class Physics3DBackend(Backend):
         watch_contacts = bool(self.scene.all_obstacles)  # type: ignore[union-attr]  # reset() set the scene
         done = unreachable = 0  # ticks run in earlier parts (a phase reset re-plans the rest)
         while True:
-            ticks, n_ticks, ended = 0, len(trajectory.joint_targets), None
+            ticks, n_ticks, ended = 0, len(trajectory), None
             run = self._ticks(trajectory)
             if hook is not None:  # the same runs of ticks, cut where a frame is due
                 run = _filmed(run, hook, done, due)
@@ -706,7 +714,7 @@ class Physics3DBackend(Backend):
                             stopped = True
                             break
             planned = n_ticks if ended is None else ticks
-            unreachable += planned - int(np.count_nonzero(trajectory.reachable[:planned]))
+            unreachable += planned - int(np.count_nonzero(trajectory.solve(planned)[1][:planned]))
             done += ticks
             if ended is None or error is not None or fell or stopped:
                 break

@@ -44,7 +44,6 @@ interval, so the last tick of a double step is the put-down instant of the secon
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass, field
 from enum import IntEnum
@@ -55,7 +54,7 @@ import numpy as np
 from footsim.geometry import Pose2D, mean_pose, wrap_angles
 from footsim.walk import kernels
 from footsim.walk.footsteps import DoubleStep, FeetState, Footstep, FootstepGeometry, Side
-from footsim.walk.ik import LEG_JOINT_NAMES, LegGeometry, ik_legs, legs_ik, legs_ik_tick
+from footsim.walk.ik import LEG_JOINT_NAMES, IkLegs, LegGeometry, ik_legs, legs_ik, legs_ik_tick, legs_ik_ticks
 from footsim.walk.params import WalkParams
 from footsim.walk.spline import knots_state, sample_positions
 
@@ -99,6 +98,10 @@ class WalkTrajectory:
     z = 0 is the ground), yaw wrapped to (−π, π].  They are computed from the support-frame poses
     on first access: the 3D driver needs only the joint targets and the trunk's roll and pitch
     (:attr:`trunk_in_support`), which no frame change about z alters.
+
+    The joint targets too are computed on first need, a half step at a time (:meth:`solve`): a
+    phase reset (:meth:`QuinticWalk.end_step`) re-plans the rest of the call, so the 3D driver
+    solves only the half steps it reaches.
     """
 
     dt: float
@@ -106,8 +109,6 @@ class WalkTrajectory:
     phase: np.ndarray  # (n,) walk phase in [0, 1) at each tick
     support: np.ndarray  # (n,) bool: True = left support (phase < 0.5)
     state: np.ndarray  # (n,) WalkState of the half step each tick belongs to
-    joint_targets: np.ndarray  # (n, 12) radians, LEG_JOINT_NAMES order
-    reachable: np.ndarray  # (n,) bool: IK reached both feet within the joint limits
     executed: DoubleStep | None  # the double step actually placed (clipped / interference); None for a stop
     feet: FeetState  # planar feet after the call
     interfered: int = 0  # footsteps shortened by foot–foot interference
@@ -115,9 +116,40 @@ class WalkTrajectory:
     # (x, y, theta) in the odometry frame
     local_poses: np.ndarray = field(default_factory=lambda: np.zeros((3, 6, 0)), repr=False)
     support_poses: np.ndarray = field(default_factory=lambda: np.zeros((3, 0)), repr=False)
+    # The leg IK's legs (QuinticWalk.ik_legs) and where each half step's ticks end (the IK's parts)
+    legs: IkLegs | None = field(default=None, repr=False)
+    half_step_ends: tuple[int, ...] = ()
 
     def __len__(self) -> int:
         return int(self.t.shape[0])
+
+    @cached_property
+    def _ik(self) -> tuple[np.ndarray, np.ndarray, list[int]]:
+        # The joint targets, reachability and how many ticks are solved so far.
+        n = len(self)
+        return np.empty((n, 12)), np.empty(n, dtype=np.bool_), [0]
+
+    def solve(self, stop: int) -> tuple[np.ndarray, np.ndarray, int]:
+        """The leg IK of every tick before ``stop``, run for the half steps not solved yet.
+        Returns ``(joint targets (n, 12), reachable (n,), solved)``: the rows before ``solved`` (≥
+        ``stop``, the end of a half step) are final, the later ones not computed yet."""
+        joints, reachable, solved = self._ik
+        if stop > solved[0]:
+            assert self.legs is not None  # every trajectory with ticks has them
+            end = next(end for end in self.half_step_ends if end >= stop)
+            legs_ik_ticks(self.local_poses, solved[0], end, self.legs, joints, reachable)
+            solved[0] = end
+        return joints, reachable, solved[0]
+
+    @property
+    def joint_targets(self) -> np.ndarray:
+        """(n, 12) radians, LEG_JOINT_NAMES order."""
+        return self.solve(len(self))[0]
+
+    @property
+    def reachable(self) -> np.ndarray:
+        """(n,) bool: the IK reached both feet within the joint limits."""
+        return self.solve(len(self))[1]
 
     @property
     def duration(self) -> float:
@@ -191,6 +223,7 @@ class _CallLayout:
     ticks: np.ndarray  # (n,) 1 … n
     phase: np.ndarray  # (n,) walk phase in [0, 1)
     state: np.ndarray  # (n,) WalkState (int8)
+    half_step_ends: tuple[int, ...]  # the tick after each half step's last
 
     @classmethod
     def of(cls, plans: list[_HalfStep]) -> _CallLayout:
@@ -222,7 +255,7 @@ class _CallLayout:
         )
         for table in tables:
             table.setflags(write=False)  # shared by every call of this layout
-        return cls(*tables)
+        return cls(*tables, tuple(np.cumsum(counts).tolist()))
 
 
 def _transform_trunk_state(state: TrunkState, frame: Pose2D) -> TrunkState:
@@ -479,7 +512,7 @@ class QuinticWalk:
         plan = plans[h]
         if plan.kind not in (WalkState.START_STEP, WalkState.WALKING) or trajectory.executed is None:
             raise ValueError(f"tick {k} is in a {plan.kind.name} half step: no flying foot to end it")
-        local_time = float(plan.tick_times[k - int(np.searchsorted(layout.half_step, h))])
+        local_time = float(plan.tick_times[k - (layout.half_step_ends[h - 1] if h else 0)])
         flying = plan.support.other
         foot = trajectory.local_poses[0 if flying is Side.LEFT else 1, :, k]
         touchdown, height = Pose2D(float(foot[X]), float(foot[Y]), float(foot[YAW])), float(foot[Z])
@@ -499,12 +532,12 @@ class QuinticWalk:
         if i == 1:  # the call ends here
             self._feet = feet  # type: ignore[assignment]
             self._last_call = None
-            empty = self._empty_trajectory()
-            return dataclasses.replace(empty, executed=DoubleStep(steps[0], steps[1]), interfered=trajectory.interfered)
+            return self._empty_trajectory(DoubleStep(steps[0], steps[1]), trajectory.interfered)
         second = plans[h + 1]
         before = FeetState(*(placed if side is flying else plan.support_pose for side in (Side.LEFT, Side.RIGHT)))
-        rest = self._plan(second.kind, flying, before, touchdown.inverse(), second.landing, self.half_period, 0.5, 0.5)
-        rest = dataclasses.replace(rest, last_z=-height)
+        rest = self._plan(
+            second.kind, flying, before, touchdown.inverse(), second.landing, self.half_period, 0.5, 0.5, -height
+        )
         after = before.with_foot(plan.support, placed.compose(second.landing))
         return self._run([rest], DoubleStep(steps[0], steps[1]), after, trajectory.interfered)
 
@@ -516,7 +549,7 @@ class QuinticWalk:
         return q
 
     @cached_property
-    def ik_legs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+    def ik_legs(self) -> IkLegs:
         """This engine's legs and joint limits as the compiled IK takes them (``ik.ik_legs``)."""
         return ik_legs(self.leg, self._limits)
 
@@ -531,7 +564,7 @@ class QuinticWalk:
 
     # --- planning ------------------------------------------------------------------------
 
-    def _plan(self, kind, support, feet, last, landing, duration, phase_start, phase_span) -> _HalfStep:
+    def _plan(self, kind, support, feet, last, landing, duration, phase_start, phase_span, last_z=0.0) -> _HalfStep:
         n_ticks = int(round(duration / self.control_dt))
         return _HalfStep(
             kind=kind,
@@ -543,6 +576,7 @@ class QuinticWalk:
             tick_times=np.arange(1, n_ticks + 1) * self.control_dt,
             phase_start=phase_start,
             phase_span=phase_span,
+            last_z=last_z,
         )
 
     def _half_step_plans(self, halves) -> list[_HalfStep]:
@@ -846,7 +880,6 @@ class QuinticWalk:
         local = np.zeros((3, 6, n_total))
         local.put(layout.local, sampled.take(layout.sampled))
         support_pose = np.array([plan.support_pose for plan in plans]).T[:, layout.half_step]
-        joints, reachable = self._leg_joints(local[2], local[0], local[1])
         t = (self._tick - n_total + layout.ticks) * dt
         phase = layout.phase.copy()
         return WalkTrajectory(
@@ -855,24 +888,23 @@ class QuinticWalk:
             phase=phase,
             support=phase < 0.5,
             state=layout.state.copy(),
-            joint_targets=joints,
-            reachable=reachable,
             executed=executed,
             feet=feet_after,
             interfered=interfered,
             local_poses=local,
             support_poses=support_pose,
+            legs=self.ik_legs,
+            half_step_ends=layout.half_step_ends,
         )
 
-    def _empty_trajectory(self) -> WalkTrajectory:
+    def _empty_trajectory(self, executed: DoubleStep | None = None, interfered: int = 0) -> WalkTrajectory:
         return WalkTrajectory(
             dt=self.control_dt,
             t=np.zeros(0),
             phase=np.zeros(0),
             support=np.zeros(0, dtype=bool),
             state=np.zeros(0, dtype=np.int8),
-            joint_targets=np.zeros((0, 12)),
-            reachable=np.zeros(0, dtype=bool),
-            executed=None,
+            executed=executed,
             feet=self._feet,
+            interfered=interfered,
         )

@@ -371,6 +371,9 @@ def leg_ik(foot_pos, foot_rpy, side, leg: LegGeometry = LegGeometry(), limits=No
 
 # --- both legs along a trajectory, compiled ----------------------------------------------------
 
+# The legs as the compiled IK takes them (:func:`ik_legs`): left and right chain vectors, limits, whether to apply them.
+IkLegs = tuple[np.ndarray, np.ndarray, np.ndarray, bool]
+
 
 def legs_ik(
     trunk: np.ndarray,
@@ -393,6 +396,8 @@ def legs_ik(
         np.ascontiguousarray(trunk, dtype=float),
         np.ascontiguousarray(left, dtype=float),
         np.ascontiguousarray(right, dtype=float),
+        0,
+        n,
         *ik_legs(leg, limits),
         joints,
         reachable,
@@ -400,7 +405,17 @@ def legs_ik(
     return joints, reachable
 
 
-def ik_legs(leg: LegGeometry, limits: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+def legs_ik_ticks(
+    local: np.ndarray, start: int, stop: int, legs: IkLegs, joints: np.ndarray, reachable: np.ndarray
+) -> None:
+    """:func:`legs_ik` of ticks ``start … stop − 1`` of a walk trajectory's support-frame poses
+    ``local`` (3, 6, n) (left sole, right sole, trunk; ``WalkTrajectory.local_poses``), written
+    into those rows of ``joints`` (n, 12) and ``reachable`` (n,); ``legs`` as :func:`ik_legs`
+    returns them.  The walk engine solves a trajectory's ticks this way, a part at a time."""
+    _legs_ik(local[2], local[0], local[1], start, stop, *legs, joints, reachable)
+
+
+def ik_legs(leg: LegGeometry, limits: np.ndarray | None = None) -> IkLegs:
     """The legs as the compiled IK takes them (:func:`legs_ik`, :func:`legs_ik_tick`): the left and
     right :attr:`LegChain.vector`, ``limits`` (12, 2) (zeros when None) and whether to apply them."""
     lim = np.zeros((12, 2)) if limits is None else np.ascontiguousarray(limits, dtype=float)
@@ -427,9 +442,9 @@ def _rpy_matrix(roll, pitch, yaw):
 
 
 @compiled
-def _legs_ik(trunk, left, right, left_chain, right_chain, limits, use_limits, joints, reachable):
-    """:func:`legs_ik`'s loop: :func:`_legs_sample` per sample."""
-    for i in range(trunk.shape[1]):
+def _legs_ik(trunk, left, right, start, stop, left_chain, right_chain, limits, use_limits, joints, reachable):
+    """:func:`legs_ik`'s loop: :func:`_legs_sample` per sample ``start … stop − 1``."""
+    for i in range(start, stop):
         reachable[i] = _legs_sample(
             trunk[0, i], trunk[1, i], trunk[2, i], trunk[3, i], trunk[4, i], trunk[5, i],
             left, right, i, left_chain, right_chain, limits, use_limits, joints[i],
