@@ -14,9 +14,13 @@ All of them for ``footsim/FootstepNav-v1`` and, prefixed ``v0:``, for ``footsim/
 
 ``check=FILE`` compares with a recorded file and exits 1 naming every fingerprint that differs.
 The bytes depend on the numerical libraries too (numpy's small-matrix kernels, numba, the
-simulators' builds differ in the last bits between versions), so ``out=`` also records the
-``environment`` (library versions) and ``check=`` names any version that differs: then record the
-base commit's fingerprints in this environment and compare with those.
+simulators' builds differ in the last bits between versions) and presumably on the CPU (numba
+compiles for the host's instruction set): the same commit and library versions gave other
+FootstepNav-v1 walk-engine and 3D fingerprints in a new checkout of the development machine, and
+a second run there reproduced the new ones.  So ``out=`` also
+records the ``environment`` (library versions, CPU model and vector extensions) and ``check=``
+names any entry that differs: then record the base commit's fingerprints in this environment and
+compare with those.
 Only public surfaces are used, so the script runs unchanged before and after a refactoring.
 """
 
@@ -97,12 +101,26 @@ def fingerprints(backends: list[str]) -> dict[str, str]:
     return out
 
 
+def _cpu() -> str:
+    """The CPU model and the vector extensions that change compiled floating-point code."""
+    try:
+        info = open("/proc/cpuinfo").read()
+    except OSError:
+        import platform
+
+        return platform.processor() or "unknown"
+    model = next((line.split(":", 1)[1].strip() for line in info.splitlines() if line.startswith("model name")), "?")
+    flags = next((line.split(":", 1)[1].split() for line in info.splitlines() if line.startswith("flags")), [])
+    vector = sorted(f for f in flags if f in {"avx", "avx2", "fma", "avx512f", "avx512vl", "avx512_vnni", "amx_tile"})
+    return f"{model} [{' '.join(vector)}]"
+
+
 def environment() -> dict[str, str]:
     """The versions the fingerprints' last bits depend on."""
     import importlib.metadata as md
     import platform
 
-    versions = {"python": platform.python_version()}
+    versions = {"python": platform.python_version(), "cpu": _cpu()}
     for dist in ("numpy", "numba", "mujoco", "dm_control", "pybullet", "pymunk"):
         try:
             versions[dist] = md.version(dist)
