@@ -87,7 +87,14 @@ def test_bad_plan_fails_naming_the_key(tmp_path, edit, message):
 
 def test_select_and_training_commands(tmp_path, capsys):
     plan = rp.load_plan()
-    assert {c.name for c in rp.select(plan, "2d")} == {"2d_nav", "2d_obst", "2d_nav_noise", "2d_obst_noise"}
+    assert {c.name for c in rp.select(plan, "2d")} == {
+        "2d_nav",
+        "2d_obst",
+        "2d_nav_noise",
+        "2d_obst_noise",
+        "quickstart",
+        "quickstart_beta",
+    }
     assert {c.backend for c in rp.select(plan, "3d")} == {"mujoco", "dm_control", "pybullet"}
     with pytest.raises(rp.PlanError, match=r"only=4d: '4d' is neither 2d, 3d nor a condition"):
         rp.select(plan, "4d")

@@ -206,7 +206,9 @@ def test_shipped_zoo_is_small_and_intact():
 @pytest.mark.slow
 def test_shipped_policy_reproduces_its_recorded_episodes(tmp_path):
     """footsim-eval on the first 20 scenes of the standard set gives the episodes recorded when the
-    entry was added, to the last digit (outcome, time, steps, return, final pose)."""
+    entry was added: outcome, steps and contacts exactly, time, return and final pose to 1e-6.
+    (Not to the last digit: torch's and numba's CPU kernels differ in the last bits between
+    hosts, measured here as ~1e-9 in the final pose on another host of the development machine.)"""
     name = SHIPPED[0]
     root = REPO / "footsim" / "zoo"
     recorded = _rows(root / name / "check_episodes.csv")
@@ -220,7 +222,20 @@ def test_shipped_policy_reproduces_its_recorded_episodes(tmp_path):
         env=env,
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
-    assert _rows(tmp_path / "episodes.csv") == recorded
+    rows = _rows(tmp_path / "episodes.csv")
+    assert len(rows) == len(recorded)
+    for row, want in zip(rows, recorded):
+        assert set(row) == set(want)
+        for key, value in want.items():
+            try:
+                number = float(value)
+            except ValueError:
+                assert row[key] == value, key
+                continue
+            if key in ("scene", "steps", "contact_steps"):
+                assert row[key] == value, key
+            else:
+                assert float(row[key]) == pytest.approx(number, rel=1e-6, abs=1e-6), key
 
 
 @pytest.mark.slow
