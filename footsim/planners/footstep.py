@@ -53,7 +53,7 @@ class FootstepParams:
 
     time_budget_s: float = 0.045  # per plan, with expansion_budget None (anytime: the whole budget is used)
     # Node expansions per plan over all anytime iterations; when set it replaces time_budget_s, so
-    # plans do not depend on the machine or its load (300 ≈ 45 ms on the 2-core reference machine).
+    # plans do not depend on the machine or its load (docs/BENCHMARKS.md: the time it takes).
     # None: the wall-clock budget.
     expansion_budget: int | None = 300
     epsilons: tuple = (3.0, 2.0, 1.5, 1.2, 1.0)  # heuristic weights of the anytime iterations
