@@ -634,6 +634,8 @@ def thesis_table(plan: Plan, cstats: dict) -> list[str]:
                 else:
                     verdict = "met" if (value >= limit if op == ">=" else value <= limit) else "not met"
                 targets.append(f"{fig['label']} {op.replace('>=', '≥').replace('<=', '≤')} {limit:g}: {verdict}")
+        if row.get("tried"):  # what was tried for a target not reached (the plan's own words)
+            targets.append(f"tried: {row['tried']}")
         lines.append(f"| {row['question']} | {row['thesis']} | {'; '.join(figures)} | {'; '.join(targets) or '—'} |")
     lines.append("")
     return lines
