@@ -362,9 +362,9 @@ class FootstepPlanner:
         """
         t0 = time.perf_counter()
         budget = self.params.time_budget_s if budget_s is None else budget_s
-        by_expansions = self.params.expansion_budget is not None
-        deadline = math.inf if by_expansions else t0 + budget
-        expansions_left = int(self.params.expansion_budget) if by_expansions else math.inf
+        expansion_budget = self.params.expansion_budget
+        deadline = math.inf if expansion_budget is not None else t0 + budget
+        expansions_left: float = math.inf if expansion_budget is None else int(expansion_budget)
         if self.goal_status != "ok":
             return FootstepPlan(self.goal_status, time_s=time.perf_counter() - t0)
         nav = mean_pose(left, right)
