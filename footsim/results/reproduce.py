@@ -494,7 +494,7 @@ def _train_line(plan: Plan, cond: Condition) -> str:
         return f"{cond.name}: the policies of {cond.policies}, evaluated on {cond.backend}"
     parent = f" init_from={plan.runs_dir}/{cond.parent}/seed<S>" if cond.parent else ""
     seeds = ",".join(str(s) for s in cond.seeds)
-    return f"{cond.name}: `footsim-train {' '.join(cond.train)} seed=<S>{parent}` (S = {seeds})"
+    return f"{cond.name}: `{' '.join(['footsim-train', *cond.train])} seed=<S>{parent}` (S = {seeds})"
 
 
 def _zoo_line(plan: Plan, cond: Condition, runs: list[dict], root: Path) -> str:
