@@ -19,8 +19,8 @@
 * **Anytime (ARA*-style)**: weighted A* with ε from ``epsilons`` (e.g. 3 → 1); each finished
   search is followed by one with the next ε and the best plan so far as an upper bound (nodes
   with g + h ≥ best cost are pruned), until the budget runs out: ``expansion_budget`` node
-  expansions (the default: the clock is not read, so a plan is the same on any machine and under
-  any load), or with it None ``time_budget_s`` of wall-clock time.  Without any plan when
+  expansions (the default: the clock does not decide, so a plan is the same on any machine and
+  under any load), or with it None ``time_budget_s`` of wall-clock time.  Without any plan when
   the budget ends, the plan to the expanded node nearest the goal (by heuristic) is returned as
   ``partial``; an exhausted search space is ``unreachable``; a goal whose feet or trunk overlap
   an obstacle is ``goal_in_collision``.  The planner never runs past its budget by more than
