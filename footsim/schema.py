@@ -224,6 +224,7 @@ class AgentConfig:
     vf_coef: float = MISSING
     max_grad_norm: float = MISSING
     log_std_init: float = MISSING
+    reset_log_std: bool = MISSING
     normalize_reward: bool = MISSING
     normalize_obs: bool = MISSING
 

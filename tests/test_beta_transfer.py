@@ -156,3 +156,19 @@ def test_obstacle_parent_seeds_a_path_hint_run_but_not_an_incompatible_layout(tm
     wide = PPO("MlpPolicy", FootstepEnv(task=wide_task), device="cpu", seed=1)
     with pytest.raises(ValueError, match="goal_and_actions\\+rays\\+imu"):
         init_from_run(wide, imu_dir, wide_task)
+
+
+def test_reset_log_std_reopens_exploration_after_a_warm_start_and_refuses_beta():
+    from footsim.rl.transfer import reset_log_std
+
+    model = PPO("MlpPolicy", FootstepEnv(), policy_kwargs={"log_std_init": -2.0}, device="cpu", seed=0)
+    obs, _ = FootstepEnv().reset(seed=0)
+    mean_before = model.predict(obs, deterministic=True)[0]
+    reset_log_std(model, -0.5)
+    # every action dimension's std is e^-0.5, the mean is untouched
+    dist = model.policy.get_distribution(model.policy.obs_to_tensor(obs)[0])
+    np.testing.assert_allclose(dist.distribution.stddev.detach().numpy(), np.exp(-0.5), rtol=1e-6)
+    np.testing.assert_array_equal(model.predict(obs, deterministic=True)[0], mean_before)
+    beta = PPO(BetaActorCriticPolicy, FootstepEnv(), device="cpu", seed=0)
+    with pytest.raises(ValueError, match="agent=ppo"):
+        reset_log_std(beta, -0.5)

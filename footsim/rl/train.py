@@ -30,7 +30,7 @@ from footsim.rl.common import (
     write_json,
 )
 from footsim.rl.evaluate import evaluate_run
-from footsim.rl.transfer import init_from_run
+from footsim.rl.transfer import init_from_run, reset_log_std
 from footsim.utils import atomic_save
 
 LATEST = "latest.zip"
@@ -218,6 +218,8 @@ def train(cfg: DictConfig, run_dir: Path) -> dict:
         )
         if cfg.get("init_from"):
             lineage = init_from_run(model, cfg.init_from, cfg.task)
+            if agent.reset_log_std:
+                lineage["log_std_reset_to"] = reset_log_std(model, float(agent.log_std_init))
             write_json(run_dir / "parent.json", lineage)
             print(f"initialised from {lineage['init_from']} ({lineage['parent_backend']}, {lineage['parent_task']})")
         done = 0

@@ -99,6 +99,23 @@ def init_from_run(model, parent_dir: str | Path, task=None) -> dict:
     }
 
 
+def reset_log_std(model, log_std: float) -> float:
+    """Set a Gaussian policy's action log std to ``log_std`` in every dimension (after
+    :func:`init_from_run`: a parent trained to convergence has a small std and barely explores a
+    new task).  Returns ``log_std``; a Beta policy has no log std and is refused."""
+
+    param = getattr(model.policy, "log_std", None)
+    if param is None:
+        raise ValueError(
+            "agent.reset_log_std=true needs the Gaussian policy (agent=ppo); the Beta policy has no log std"
+        )
+    import torch
+
+    with torch.no_grad():
+        param.fill_(log_std)
+    return log_std
+
+
 OBS_WITHOUT_RAYS = 17
 
 
