@@ -68,6 +68,10 @@ conditions:
         (lambda t: t + "    n_scenes: all\n", r"conditions\.nav\.n_scenes must be a positive integer"),
         (lambda t: t + "baselines: {velocity: [obst]}\n", r"baselines\.velocity: no condition 'obst'"),
         (
+            lambda t: t + "paths: [{condition: nav, set: standard, scenes: [6]}]\n",
+            r"paths\[0\]\.scenes: scene indices 0\.\.5 of set 'standard', got \[6\]",
+        ),
+        (
             lambda t: t + "thesis: [{question: q, thesis: t, figures: [{label: s, condition: nav, metric: wins}]}]\n",
             r"thesis\[0\]\.figures\[0\]\.metric: 'wins' is not one of",
         ),
@@ -139,6 +143,7 @@ def small_study(tmp_path_factory, tiny_runs):
         + """
 baselines: {velocity: [nav]}
 tables: [{title: Tiny, conditions: [nav]}]
+paths: [{condition: nav, set: standard, scenes: [1]}]
 thesis:
   - question: Obstacle-free
     thesis: success 1.0
@@ -206,6 +211,22 @@ def test_reproduce_end_to_end(small_study, tmp_path, capsys):
     assert "standard: seed 20220101, 6 scenes" in text and "heldout: seed 7, 4 scenes" in text
     assert "nav_s0, nav_s1 (trained at commit" in text and "| Obstacle-free | success 1.0 |" in text
     assert (out / "success_by_seed.png").is_file()
+    # the path plot of scene 1: nav_s0 and the velocity baseline, each the episode the evaluation ran
+    assert f"`{os.path.relpath(out)}/paths_nav_standard_1.png`" in text and "policy nav_s0, velocity" in text
+    assert (out / "paths_nav_standard_1.png").stat().st_size > 0
+    from footsim.planners.report import episode_path
+    from footsim.rl.evaluate import evaluate
+    from footsim.tasks.scenes import sample_scenes
+
+    loaded = rp.load_plan(plan)
+    for job in rp.path_jobs(loaded, loaded.paths[0], root / "zoo"):
+        env, controller = rp.job_env_and_controller(job, root / "zoo")
+        scenes = sample_scenes(env.sampler, 6, 20220101)
+        outcome, footsteps, navs = episode_path(env, controller, scenes[1], seed=1)
+        (record,) = evaluate(env, controller, scenes, seed=0, progress=False, indices=[1])
+        assert (outcome, len(navs) - 1) == (record["outcome"], record["steps"]), job.name
+        assert len(footsteps) == 2 + 2 * record["steps"]  # the standing feet, then two per double step
+        env.close()
 
     # again, in two worker processes: the same cells (episode i keeps scene i and seed i in any shard)
     before = (out / "runs.csv").read_text()

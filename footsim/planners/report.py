@@ -28,10 +28,10 @@ from footsim.env import FootstepEnv
 from footsim.geometry import Pose2D
 from footsim.planners.controllers import make_controller
 from footsim.rl.common import LoadedPolicy
-from footsim.rl.evaluate import PolicyController, format_table
+from footsim.rl.evaluate import EpisodeRecord, PolicyController, format_table
 from footsim.robots.registry import get_robot
 from footsim.tasks.scenes import load_scenes
-from footsim.utils import parse_kv_args
+from footsim.utils import atomic_save, parse_kv_args
 from footsim.walk.footsteps import Side
 
 SETS = ("free", "obstacles")
@@ -118,6 +118,20 @@ def plot_comparisons(root: Path, data: dict) -> list[Path]:
     return written
 
 
+def episode_path(env, controller, scene, seed: int = 0) -> tuple[str, list, list[Pose2D]]:
+    """One episode of ``controller`` on ``env`` in ``scene`` (as the evaluation runs episode
+    ``seed``): its outcome, the footsteps put down (``[(side, pose)]``, from a backend that keeps
+    a ``history``, e.g. the 2D one) and the navigation pose after the reset and each double step."""
+
+    episode = EpisodeRecord(env, controller, scene, seed)
+    episode.begin()
+    navs = [Pose2D(*episode.info["pose"])]
+    while not episode.done:
+        navs.append(Pose2D(*episode.step()["pose"]))
+    history = list(getattr(env.backend, "history", []) or [])
+    return episode.info["outcome"], history, navs
+
+
 def run_paths(scene, controllers: dict, backend: str = "pymunk", noise: str = "none", seed: int = 0) -> dict:
     """Run each controller on one scene; returns {name: (outcome, footsteps [(side, pose)], nav poses)}."""
 
@@ -125,17 +139,7 @@ def run_paths(scene, controllers: dict, backend: str = "pymunk", noise: str = "n
     for name, make in controllers.items():
         env = FootstepEnv(backend=backend, task="nav_obstacles" if scene.all_obstacles else "nav", noise=noise)
         try:
-            controller = make(env)
-            obs, info = env.reset(seed=seed, options={"scene": scene})
-            controller.reset(scene, info)
-            navs = [Pose2D(*info["pose"])]
-            done = False
-            while not done:
-                obs, _, terminated, truncated, info = env.step(controller(obs, info))
-                navs.append(Pose2D(*info["pose"]))
-                done = terminated or truncated
-            history = list(getattr(env.backend, "history", []) or [])
-            out[name] = (info["outcome"], history, navs)
+            out[name] = episode_path(env, make(env), scene, seed)
         finally:
             env.close()
     return out
@@ -178,7 +182,7 @@ def plot_paths(path: Path, scene, runs: dict, robot) -> None:
         ax.set_ylim(min(ys + [p.y for p in navs]) - 0.4, max(ys + [p.y for p in navs]) + 0.4)
         ax.set_aspect("equal")
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    atomic_save(lambda tmp: fig.savefig(tmp, dpi=100, format="png"), path, ".png")
     plt.close(fig)
 
 

@@ -96,6 +96,7 @@ class Plan:
     baselines: dict[str, tuple[str, ...]]
     tables: tuple[dict, ...]
     thesis: tuple[dict, ...]
+    paths: tuple[dict, ...] = ()  # per-scene path plots: {condition, set, scenes}
     raw: dict = field(repr=False, default_factory=dict)
 
     def entry(self, condition: Condition, seed: int) -> str:
@@ -201,6 +202,19 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
                 raise PlanError(f"{path}: {where}metric: {fig['metric']!r} is not one of {list(METRICS)}")
             if fig.get("target") is not None:
                 parse_target(fig["target"], f"{path}: {where}target")
+    paths = tuple(raw.get("paths") or ())
+    for i, spec_ in enumerate(paths):
+        where = f"paths[{i}]."
+        if need(spec_, "condition", str, where) not in conditions:
+            raise PlanError(f"{path}: {where}condition: no condition {spec_['condition']!r}")
+        if need(spec_, "set", str, where) not in sets:
+            raise PlanError(f"{path}: {where}set: no scene set {spec_['set']!r} ({', '.join(sets)})")
+        scenes = need(spec_, "scenes", list, where)
+        n_set = sets[spec_["set"]][1]
+        if not scenes or not all(isinstance(k, int) and 0 <= k < n_set for k in scenes):
+            raise PlanError(
+                f"{path}: {where}scenes: scene indices 0..{n_set - 1} of set {spec_['set']!r}, got {scenes!r}"
+            )
     zoo_name = str(raw.get("zoo_name", "{condition}_s{seed}"))
     return Plan(
         path=path,
@@ -212,6 +226,7 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
         baselines=baselines,
         tables=tables,
         thesis=thesis,
+        paths=paths,
         raw=raw,
     )
 
@@ -295,35 +310,41 @@ def _quiet():
     return contextlib.redirect_stdout(io.StringIO())
 
 
-def evaluate_shard(job: Job, start: int, stop: int, root: str) -> list[dict]:
-    """Episodes ``start..stop-1`` of ``job`` (module level: runs in a worker process)."""
+def job_env_and_controller(job: Job, root: str | Path) -> tuple[Any, Any]:
+    """The env and controller that evaluate ``job``: a zoo policy in its own resolved config with
+    the job's backend, task and noise, or a baseline preset on the job's env."""
     from omegaconf import OmegaConf
 
     from footsim import config as fconf
     from footsim.env import FootstepEnv, make_env
     from footsim.planners.controllers import make_controller
     from footsim.rl.common import LoadedPolicy, load_run_config
-    from footsim.rl.evaluate import PolicyController, eval_run_config, evaluate
+    from footsim.rl.evaluate import PolicyController, eval_run_config
+
+    if job.kind == "policy":
+        run_dir = zoo.entry_dir(job.name, Path(root))
+        saved = load_run_config(run_dir)
+        asked: dict[str, Any] = {}
+        if saved.backend.name != job.backend:
+            asked["backend"] = {"name": job.backend}
+        if saved.task.name != job.task:
+            asked["task"] = job.task
+        if saved.noise.get("name", "none") != job.noise:
+            asked["noise"] = job.noise
+        run_cfg = eval_run_config(run_dir, OmegaConf.create(asked))
+        return make_env(run_cfg), PolicyController(LoadedPolicy(run_dir))
+    env = FootstepEnv(backend=job.backend, task=job.task, noise=job.noise)
+    controller_cfg = fconf.to_plain(fconf.compose("eval", [f"controller={job.name}"]).controller)
+    return env, make_controller(env, controller_cfg)
+
+
+def evaluate_shard(job: Job, start: int, stop: int, root: str) -> list[dict]:
+    """Episodes ``start..stop-1`` of ``job`` (module level: runs in a worker process)."""
+    from footsim.rl.evaluate import evaluate
     from footsim.tasks.scenes import sample_scenes
 
     with _quiet():
-        if job.kind == "policy":
-            run_dir = zoo.entry_dir(job.name, Path(root))
-            saved = load_run_config(run_dir)
-            asked: dict[str, Any] = {}
-            if saved.backend.name != job.backend:
-                asked["backend"] = {"name": job.backend}
-            if saved.task.name != job.task:
-                asked["task"] = job.task
-            if saved.noise.get("name", "none") != job.noise:
-                asked["noise"] = job.noise
-            run_cfg = eval_run_config(run_dir, OmegaConf.create(asked))
-            env = make_env(run_cfg)
-            controller: Any = PolicyController(LoadedPolicy(run_dir))
-        else:
-            env = FootstepEnv(backend=job.backend, task=job.task, noise=job.noise)
-            controller_cfg = fconf.to_plain(fconf.compose("eval", [f"controller={job.name}"]).controller)
-            controller = make_controller(env, controller_cfg)
+        env, controller = job_env_and_controller(job, root)
         try:
             scenes = sample_scenes(env.sampler, job.n_scenes, job.scenes_seed)
             return evaluate(env, controller, scenes, seed=0, progress=False, indices=range(start, stop))
@@ -581,8 +602,18 @@ def render_page(plan: Plan, runs: list[dict], cond_rows: list[dict], root: Path,
         "",
         f"* `{data_dir}/success_by_seed.png`: each seed's success on the standard scenes, the mean and its interval.",
         f"* `{data_dir}/learning_curves.png`: training success rate over steps, mean over seeds and the interval band.",
-        "",
     ]
+    for spec in plan.paths:
+        cond = plan.conditions[spec["condition"]]
+        shown = ", ".join(("policy " + j.name) if j.kind == "policy" else j.name for j in path_jobs(plan, spec, root))
+        if not shown:
+            continue
+        files = ", ".join(f"`{data_dir}/{path_plot_name(spec, k)}`" for k in spec["scenes"])
+        lines.append(
+            f"* {files}: the footsteps on scene(s) {', '.join(map(str, spec['scenes']))} of the {spec['set']} set, "
+            f"{cond.title} ({shown}; each the episode the tables count)."
+        )
+    lines.append("")
     return "\n".join(lines)
 
 
@@ -741,6 +772,62 @@ def plot_learning_curves(path: Path, plan: Plan, root: Path) -> bool:
     return drawn
 
 
+def path_plot_name(spec: dict, k: int) -> str:
+    return f"paths_{spec['condition']}_{spec['set']}_{k}.png"
+
+
+def path_jobs(plan: Plan, spec: dict, root: Path) -> list[Job]:
+    """What a path plot shows: the condition's first zoo policy (if the zoo has it) and the
+    baselines the plan runs under that condition, each as the evaluation runs it."""
+    cond = plan.conditions[spec["condition"]]
+    seed, n = plan.scene_sets[spec["set"]]
+    common = dict(backend=cond.backend, task=cond.task, noise=cond.noise, scenes_seed=seed, n_scenes=n)
+    jobs = []
+    seeds = plan.seeds(cond)
+    if seeds and plan.entry(cond, seeds[0]) in set(zoo.names(root)):
+        jobs.append(Job(cond.name, spec["set"], "policy", plan.entry(cond, seeds[0]), seeds[0], **common))  # type: ignore[arg-type]
+    for controller, conds in plan.baselines.items():
+        if cond.name in conds:
+            jobs.append(Job(cond.name, spec["set"], "baseline", controller, None, **common))  # type: ignore[arg-type]
+    return jobs
+
+
+def plot_scene_paths(plan: Plan, root: Path, out: Path) -> list[str]:
+    """The plan's per-scene path plots (``paths:``): for each listed scene, the footsteps of the
+    condition's policy and baselines side by side, each the same episode as in the evaluation
+    (``paths_<condition>_<set>_<k>.png`` in ``out``).  Returns the files written."""
+    from footsim.planners.report import episode_path, plot_paths
+    from footsim.robots.registry import get_robot
+    from footsim.tasks.scenes import sample_scenes
+
+    written = []
+    for spec in plan.paths:
+        jobs = path_jobs(plan, spec, root)
+        if not jobs:
+            continue
+        last = max(spec["scenes"])
+        episodes: dict[int, dict] = {k: {} for k in spec["scenes"]}
+        scene_of: dict[int, Any] = {}  # the set's scenes (the same for every job: same task and seed)
+        robot = None
+        for job in jobs:
+            with _quiet():
+                env, controller = job_env_and_controller(job, root)
+                try:
+                    robot = robot or env.robot
+                    scenes = sample_scenes(env.sampler, last + 1, job.scenes_seed)
+                    for k in spec["scenes"]:
+                        scene_of[k] = scenes[k]
+                        label = "policy " + job.name if job.kind == "policy" else job.name
+                        episodes[k][label] = episode_path(env, controller, scenes[k], seed=k)
+                finally:
+                    env.close()
+        for k, runs in episodes.items():
+            name = path_plot_name(spec, k)
+            plot_paths(out / name, scene_of[k], runs, robot or get_robot("wolfgang"))
+            written.append(name)
+    return written
+
+
 # -- the command --------------------------------------------------------------------------------
 def reproduce(
     plan: Plan,
@@ -792,6 +879,7 @@ def reproduce(
     if plots:
         plot_success_by_seed(out / "success_by_seed.png", plan, runs, cond_rows)
         plot_learning_curves(out / "learning_curves.png", plan, root)
+        plot_scene_paths(plan, root, out)
     data_dir = os.path.relpath(out)  # as the reader types it from where the command ran (the repository top)
     atomic_write_text(page, render_page(plan, runs, cond_rows, root, data_dir))
     episodes = sum(j.n_scenes for j in jobs)
