@@ -481,7 +481,7 @@ class FootstepPlanner:
         pending, pops = -1, 0 if timed else big
         while True:
             reason, n = kernels.search(
-                st, state.pose, state.link, state.hf, state.hg, state.hm, state.best_g, sp,
+                st, state.pose, state.link, state.hf, state.hg, state.hm, state.cell_key, state.cell_g, sp,
                 rels_l, costs_l, rels_r, costs_r, circles, self._extents, self._heuristic_params,
                 self.dist, self.direction, self.turn_from_direction, self._goal_step, pending, pops,
             )  # fmt: skip

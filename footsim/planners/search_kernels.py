@@ -15,8 +15,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import types
-from numba.typed import Dict
 
 from footsim.compiled import compiled
 
@@ -32,7 +30,8 @@ CLOCK = 4  # the pops allowed for this call are done (the wall-clock budget: rea
 GROW = 5  # no room for the children of the node being expanded: grow the arrays, then resume
 
 # node columns: SearchState.pose (x, y, theta, g) and SearchState.link (side bit, parent, transition)
-_CLOSED = -math.inf  # SearchState.best_g of a closed lattice cell
+_CLOSED = -math.inf  # the best g of a closed lattice cell
+_NO_CELL = np.iinfo(np.int64).min  # an empty slot of the lattice cells' hash table (no key is that low)
 
 
 @compiled
@@ -131,6 +130,26 @@ def lattice_key(x, y, theta, side_bit, inv_res, inv_bin, nbins):
 
 
 @compiled
+def _slot(cell_key, key):
+    """The slot of lattice cell ``key`` in the open-addressing table ``cell_key`` (a power of two
+    long, at most half full): where it is, or the empty slot where it goes."""
+    mask = cell_key.shape[0] - 1
+    i = ((key * -7046029254386353131) >> 29) & mask  # Fibonacci hashing
+    while cell_key[i] != key and cell_key[i] != _NO_CELL:
+        i = (i + 1) & mask
+    return i
+
+
+@compiled
+def rehash(cell_key, cell_g, new_key, new_g):
+    """Insert the cells of one table into an empty larger one."""
+    for i in range(cell_key.shape[0]):
+        if cell_key[i] != _NO_CELL:
+            j = _slot(new_key, cell_key[i])
+            new_key[j], new_g[j] = cell_key[i], cell_g[i]
+
+
+@compiled
 def _before(hf, hg, hm, a, b):
     """Heap entry a before b: ``(f, g, node)`` compared as tuples."""
     if hf[a] != hf[b]:
@@ -182,7 +201,9 @@ def _pop(hf, hg, hm, size):
 
 
 @compiled
-def _expand(st, pose, link, hf, hg, hm, best_g, sp, rels, costs, circles, feet, hp, dist, direction, turn_from, n):
+def _expand(
+    st, pose, link, hf, hg, hm, cell_key, cell_g, sp, rels, costs, circles, feet, hp, dist, direction, turn_from, n
+):
     """Push the collision-free, promising children of node ``n`` (see ``FootstepPlanner``);
     False (nothing done) when the node arrays have no room for them."""
     k = rels.shape[0]
@@ -218,9 +239,10 @@ def _expand(st, pose, link, hf, hg, hm, best_g, sp, rels, costs, circles, feet, 
             continue
         lt = wrap(lt)
         key = lattice_key(lx, ly, lt, flying_bit, inv_res, inv_bin, nbins)
-        if gc >= best_g.get(key, math.inf):  # closed cells hold -inf
+        i = _slot(cell_key, key)
+        if cell_key[i] == key and gc >= cell_g[i]:  # closed cells hold -inf
             continue
-        best_g[key] = gc
+        cell_key[i], cell_g[i] = key, gc
         m = st[0]
         pose[m, 0], pose[m, 1], pose[m, 2], pose[m, 3] = lx, ly, lt, gc
         link[m, 0], link[m, 1], link[m, 2] = flying_bit, n, j
@@ -240,7 +262,8 @@ def search(
     hf,
     hg,
     hm,
-    best_g,
+    cell_key,
+    cell_g,
     sp,
     rels_l,
     costs_l,
@@ -273,7 +296,8 @@ def search(
                     hf,
                     hg,
                     hm,
-                    best_g,
+                    cell_key,
+                    cell_g,
                     sp,
                     rels_r,
                     costs_r,
@@ -293,7 +317,8 @@ def search(
                     hf,
                     hg,
                     hm,
-                    best_g,
+                    cell_key,
+                    cell_g,
                     sp,
                     rels_l,
                     costs_l,
@@ -318,9 +343,10 @@ def search(
         n = _pop(hf, hg, hm, st[1])
         st[1] -= 1
         key = lattice_key(pose[n, 0], pose[n, 1], pose[n, 2], link[n, 0], sp[2], sp[3], st[5])
-        if best_g.get(key, 0.0) == _CLOSED:
+        i = _slot(cell_key, key)
+        if cell_key[i] == key and cell_g[i] == _CLOSED:
             continue
-        best_g[key] = _CLOSED
+        cell_key[i], cell_g[i] = key, _CLOSED
         st[2] += 1
         if st[2] > st[6]:
             return MAX_EXPANSIONS, -1
@@ -330,7 +356,8 @@ def search(
 
 
 class SearchState:
-    """One weighted-A* search's nodes, open list and lattice cells, grown on demand."""
+    """One weighted-A* search's nodes, open list and lattice cells (best g, ``-inf`` once closed, in
+    an open-addressing hash table), grown on demand."""
 
     def __init__(self, capacity: int):
         self.st = np.zeros(7, dtype=np.int64)
@@ -340,7 +367,13 @@ class SearchState:
         self.hf = np.empty(capacity, dtype=np.float64)
         self.hg = np.empty(capacity, dtype=np.float64)
         self.hm = np.empty(capacity, dtype=np.int64)
-        self.best_g = Dict.empty(key_type=types.int64, value_type=types.float64)
+        self.cell_key, self.cell_g = self._table(capacity)
+
+    @staticmethod
+    def _table(capacity: int) -> tuple[np.ndarray, np.ndarray]:
+        """Room for a cell per node (every cell comes with a node) at most half full."""
+        size = 1 << (2 * capacity - 1).bit_length()
+        return np.full(size, _NO_CELL, dtype=np.int64), np.empty(size, dtype=np.float64)
 
     def grow(self) -> None:
         n = 2 * self.pose.shape[0]
@@ -349,3 +382,6 @@ class SearchState:
             new = np.empty((n,) + old.shape[1:], dtype=old.dtype)
             new[: old.shape[0]] = old
             setattr(self, name, new)
+        cell_key, cell_g = self._table(n)
+        rehash(self.cell_key, self.cell_g, cell_key, cell_g)
+        self.cell_key, self.cell_g = cell_key, cell_g
