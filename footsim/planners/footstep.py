@@ -28,6 +28,10 @@
 
 The controller replans every double step from the believed pose and executes the plan's next
 double step.
+
+The search loop, the footprint checks and the heuristic are compiled
+(:mod:`footsim.planners.search_kernels`, bit-identical to the numpy code they replaced); the goal
+double step, the replay of the previous plan and the anytime schedule stay here.
 """
 
 from __future__ import annotations
@@ -291,6 +295,9 @@ class FootstepPlanner:
                 )
             self.rects = _Rects(obstacles, p.safety_margin)
         self.rects_goal = _Rects(obstacles, lo if lo < p.safety_margin else p.safety_margin)
+        # The compiled search's first call compiles it (or loads it from numba's cache): here, not
+        # within a plan's wall-clock budget.  Bound 0 prunes every child; nothing else is kept.
+        self._weighted_astar(self.goal_feet.left, self.goal_feet.right, 1.0, 0.0, math.inf, 1)
 
     # -- geometry helpers -----------------------------------------------------------------------
     def _stance_collides(self, left: Pose2D, right: Pose2D, exact: bool = False) -> bool:

@@ -3,11 +3,13 @@ footprint check (rectangles against circles), the heuristic, and the weighted-A*
 (pop, duplicate detection, expansion through the transition set, push).
 
 The search runs in :func:`search` until it needs the planner (the analytic goal expansion at a
-double-step boundary, more room for nodes, a look at the clock) or ends; its whole state lives in
-a :class:`SearchState`'s arrays and one typed dict, so it resumes where it stopped.  The
-conventions of :mod:`footsim.compiled` apply: the kernels do the float operations of the numpy
-code they replaced in the same order, so plans are bit-identical to it
-(``tests/test_footstep_search.py`` keeps that code as the reference).
+double-step boundary within one double step's reach of the goal, more room for nodes, a look at
+the clock) or ends; its whole state lives in a :class:`SearchState`'s arrays, so it resumes where
+it stopped.  The conventions of :mod:`footsim.compiled` apply: the kernels do the float
+operations of the numpy code they replaced in the same order, so plans are bit-identical to it
+(``tests/test_footstep_search.py`` keeps that code as the reference).  That code took cos/sin of
+arrays from numpy and the kernels take them from libm: the same values here (numpy 2.4 on
+x86-64 with AVX2; the test compares them), which another numpy build need not give in the last bit.
 """
 
 from __future__ import annotations
