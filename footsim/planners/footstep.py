@@ -28,12 +28,15 @@
 
 The controller replans every double step from the believed pose and executes the plan's next
 double step.
+
+The search loop, the footprint checks and the heuristic are compiled
+(:mod:`footsim.planners.search_kernels`, bit-identical to the numpy code they replaced); the goal
+double step, the replay of the previous plan and the anytime schedule stay here.
 """
 
 from __future__ import annotations
 
 import csv
-import heapq
 import math
 import time
 from dataclasses import dataclass, field, fields
@@ -42,6 +45,7 @@ from typing import Any
 import numpy as np
 
 from footsim.geometry import Pose2D, mean_pose, wrap_angle
+from footsim.planners import search_kernels as kernels
 from footsim.planners.grid import Costmap, distance_to_goal_map
 from footsim.scene import Obstacle, Scene
 from footsim.walk.footsteps import DoubleStep, Footstep, FootstepGeometry, Side
@@ -132,28 +136,20 @@ class FootstepPlan:
 
 
 class _Rects:
-    """Vectorised rectangle–circle overlap against a fixed set of circles."""
+    """Rectangle–circle overlap against a fixed set of circles, grown by a margin
+    (:func:`footsim.planners.search_kernels.rect_hits`)."""
 
     def __init__(self, obstacles: tuple[Obstacle, ...], margin: float):
         self.n = len(obstacles)
-        self.cx = np.array([o.x for o in obstacles], dtype=float)
-        self.cy = np.array([o.y for o in obstacles], dtype=float)
-        self.r2 = (np.array([o.r for o in obstacles], dtype=float) + margin) ** 2
+        r2 = (np.array([o.r for o in obstacles], dtype=float) + margin) ** 2
+        self.circles = np.ascontiguousarray(
+            np.column_stack([[o.x for o in obstacles], [o.y for o in obstacles], r2]).reshape(-1, 3), dtype=float
+        )
 
     def hits(self, x, y, theta, half_l, half_w) -> np.ndarray:
-        """For arrays of rectangle poses (and half extents, scalar or per pose): overlaps any circle."""
-        x = np.asarray(x, dtype=float)
-        if self.n == 0:
-            return np.zeros(x.shape, dtype=bool)
-        theta = np.asarray(theta, dtype=float)
-        c, s = np.cos(theta)[:, None], np.sin(theta)[:, None]
-        dx, dy = self.cx[None, :] - x[:, None], self.cy[None, :] - np.asarray(y, dtype=float)[:, None]
-        u, v = c * dx + s * dy, -s * dx + c * dy
-        hl = np.asarray(half_l, dtype=float).reshape(-1, 1)
-        hw = np.asarray(half_w, dtype=float).reshape(-1, 1)
-        qu = np.maximum(np.abs(u) - hl, 0.0)
-        qv = np.maximum(np.abs(v) - hw, 0.0)
-        return (qu * qu + qv * qv < self.r2[None, :]).any(axis=1)
+        """For equally long arrays of rectangle poses and half extents: overlaps any circle."""
+        x, y, theta, half_l, half_w = (np.asarray(a, dtype=float) for a in (x, y, theta, half_l, half_w))
+        return kernels.rects_hit(self.circles, x, y, theta, half_l, half_w)
 
 
 class StableRegion:
@@ -213,11 +209,10 @@ class FootstepPlanner:
         self.rects_exact = _Rects(obstacles, 0.0)
         self._active_rects = self.rects
         # Transition set per flying side, deduplicated: executed footsteps, landing poses relative to
-        # the support foot, costs, and the half extents of the 3k rectangles checked per expansion
-        # (landing foot, mid-swing foot, trunk).
-        # per flying side: steps, their relative poses, costs, and the half lengths/widths of the
-        # checked rectangles (both feet and the trunk)
-        self.transitions: dict[Side, tuple[list[Footstep], np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
+        # the support foot, costs.
+        self.transitions: dict[Side, tuple[list[Footstep], np.ndarray, np.ndarray]] = {}
+        # half extents of the rectangles checked per expansion: the foot (landing, mid-swing), the trunk
+        self._extents = np.array([*self.foot_half, *self.trunk_half], dtype=float)
         lim = self.limits
         self.stable = stable = (
             None if p.stable_region is None else StableRegion.load(p.stable_region, p.stable_max_fall_rate)
@@ -249,9 +244,7 @@ class FootstepPlanner:
                     f"controller.stable_region {p.stable_region}: no footstep of the transition set is stable "
                     f"(stable_max_fall_rate {p.stable_max_fall_rate})"
                 )
-            half_l = np.concatenate([np.full(2 * k, self.foot_half[0]), np.full(k, self.trunk_half[0])])
-            half_w = np.concatenate([np.full(2 * k, self.foot_half[1]), np.full(k, self.trunk_half[1])])
-            self.transitions[side] = (steps, np.array(rels, dtype=float), np.array(costs, dtype=float), half_l, half_w)
+            self.transitions[side] = (steps, np.array(rels, dtype=float), np.array(costs, dtype=float))
         # Heuristic map.
         g = self.goal
         self.costmap = Costmap.from_obstacles(
@@ -259,9 +252,31 @@ class FootstepPlanner:
         )
         self.dist = distance_to_goal_map(self.costmap, (g.x, g.y))
         self.direction = _downhill_direction(self.dist, self.costmap.resolution)
-        self.turn_from_direction = np.abs(_wrap(g.theta - self.direction))
+        self.turn_from_direction = kernels.turn_table(g.theta, self.direction)
+        cm = self.costmap
+        self._heuristic_params = np.array(
+            [
+                cm.origin[0],
+                cm.origin[1],
+                1.0 / cm.resolution,
+                g.theta,
+                p.heading_switch_distance,
+                1.0 / self.limits.x,
+                p.turn_heuristic_weight / self.limits.theta,
+            ]
+        )
         # The feet standing at the goal.
         self.goal_feet = geometry.initial_feet(g)
+        tol = 1e-9
+        self._goal_step = np.array(
+            [
+                *self.goal_feet.right,
+                geometry.foot_distance,
+                self.limits.x + tol,
+                self.limits.y + tol,
+                self.limits.theta + tol,
+            ]
+        )  # kernels.goal_step: the goal's right foot, the foot distance, the limits
         self.goal_status = (
             "ok"
             if not self._stance_collides(self.goal_feet.left, self.goal_feet.right, exact=True)
@@ -280,6 +295,9 @@ class FootstepPlanner:
                 )
             self.rects = _Rects(obstacles, p.safety_margin)
         self.rects_goal = _Rects(obstacles, lo if lo < p.safety_margin else p.safety_margin)
+        # The compiled search's first call compiles it (or loads it from numba's cache): here, not
+        # within a plan's wall-clock budget.  Bound 0 prunes every child; nothing else is kept.
+        self._weighted_astar(self.goal_feet.left, self.goal_feet.right, 1.0, 0.0, math.inf, 1)
 
     # -- geometry helpers -----------------------------------------------------------------------
     def _stance_collides(self, left: Pose2D, right: Pose2D, exact: bool = False) -> bool:
@@ -292,37 +310,25 @@ class FootstepPlanner:
         hw = np.array([self.foot_half[1]] * 2 + [self.trunk_half[1]])
         return bool(rects.hits(xs, ys, ts, hl, hw).any())
 
-    def _heuristic(self, x, y, theta) -> np.ndarray:
-        """Expected footsteps to the goal from navigation poses (arrays); inf outside/unreachable.
+    def _heuristic(self, x: float, y: float, theta: float) -> float:
+        """Expected footsteps to the goal from a navigation pose; inf outside the map/unreachable.
 
         Distance along the Dijkstra map over the longest footstep, plus the turning left: beyond
         ``heading_switch_distance`` first to the map's downhill direction and later to the goal
         heading, within it straight to the goal heading (weighted by ``turn_heuristic_weight``).
         """
-        cm = self.costmap
-        fi = (np.asarray(x) - cm.origin[0]) * (1.0 / cm.resolution)
-        fj = (np.asarray(y) - cm.origin[1]) * (1.0 / cm.resolution)
-        i = np.rint(fi).astype(np.intp)
-        j = np.rint(fj).astype(np.intp)
-        inside = (i >= 0) & (i < cm.shape[0]) & (j >= 0) & (j < cm.shape[1])
-        i, j = np.where(inside, i, 0), np.where(inside, j, 0)
-        d = np.where(inside, self.dist[i, j], np.inf)
-        theta = np.asarray(theta)
-        to_goal = np.abs(_wrap(self.goal.theta - theta))
-        direction = self.direction[i, j]
-        via_path = np.abs(_wrap(direction - theta)) + self.turn_from_direction[i, j]
-        turn = np.where(d > self.params.heading_switch_distance, via_path, to_goal)
-        return d * (1.0 / self.limits.x) + (self.params.turn_heuristic_weight / self.limits.theta) * turn
+        return float(
+            kernels.heuristic(self._heuristic_params, self.dist, self.direction, self.turn_from_direction, x, y, theta)
+        )
 
     def _goal_shot(self, support: Pose2D, flying_start: Pose2D) -> tuple[list, float] | None:
         """The double step (right then left) from left support ``support`` that ends at the goal."""
         geo, feet = self.geometry, self.goal_feet
-        rel = support.relative(feet.right)
-        step = Footstep(rel.x, rel.y + geo.foot_distance, rel.theta)
-        lim = self.limits
-        tol = 1e-9
-        if abs(step.x) > lim.x + tol or abs(step.y) > lim.y + tol or abs(step.theta) > lim.theta + tol:
+        within, x, y, theta = kernels.goal_step(support.x, support.y, support.theta, self._goal_step)
+        if not within:
             return None
+        step = Footstep(x, y, theta)
+        lim = self.limits
         if self.stable is not None and not self.stable.allows(step.x / lim.x, step.y / lim.y, step.theta / lim.theta):
             return None
         landed, done, interfered = geo.landing(Side.RIGHT, step)
@@ -370,7 +376,7 @@ class FootstepPlanner:
         nav = mean_pose(left, right)
         if nav.distance_to(self.goal) < 1e-3 and abs(wrap_angle(self.goal.theta - nav.theta)) < 1e-3:
             return FootstepPlan("at_goal", cost=0.0, time_s=time.perf_counter() - t0)
-        h0 = float(self._heuristic([nav.x], [nav.y], [nav.theta])[0])
+        h0 = self._heuristic(nav.x, nav.y, nav.theta)
         if not math.isfinite(h0):
             return FootstepPlan("unreachable", time_s=time.perf_counter() - t0)
         best: FootstepPlan | None = self.replay(left, right, previous) if previous is not None else None
@@ -456,121 +462,80 @@ class FootstepPlanner:
     def _weighted_astar(
         self, left: Pose2D, right: Pose2D, eps: float, bound: float, deadline: float, expansions_left: float
     ) -> dict:
+        """One weighted-A* search with heuristic weight ``eps``, pruning at ``bound``; the loop runs in
+        :func:`footsim.planners.search_kernels.search`, which comes back here for the goal double step
+        at each double-step boundary and, with a wall-clock deadline, before each pop."""
         p = self.params
-        inv_res, nbins = 1.0 / p.lattice_xy, int(p.lattice_theta_bins)
-        inv_bin = nbins / (2 * math.pi)
-        # node: (x, y, theta, side, parent, step, support pose = the flying foot's next start)
-        nodes: list[tuple[float, float, float, Side, int, Footstep | None, Pose2D]] = [
-            (left.x, left.y, left.theta, Side.LEFT, -1, None, right)
-        ]
+        k = max(len(t[0]) for t in self.transitions.values())
+        state = kernels.SearchState(1 + k * int(min(expansions_left, p.max_expansions, 64)))
+        st, sp = state.st, state.sp
+        # the root: the left foot landed last, the right (its support pose) flies next
+        state.pose[0] = (left.x, left.y, left.theta, 0.0)
+        state.link[0] = (0, -1, -1)
         nav0 = mean_pose(left, right)
-        h_start = float(self._heuristic([nav0.x], [nav0.y], [nav0.theta])[0])
-        open_heap = [(eps * h_start, 0.0, 0)]
-        best_g: dict[int, float] = {}
-        closed: set = set()
+        h_start = self._heuristic(nav0.x, nav0.y, nav0.theta)
+        state.hf[0], state.hg[0], state.hm[0] = eps * h_start, 0.0, 0
+        nbins = int(p.lattice_theta_bins)
+        big = np.iinfo(np.int64).max
+        st[:] = (1, 1, 0, 0, big if math.isinf(expansions_left) else int(expansions_left), nbins, p.max_expansions)
+        sp[:] = (eps, bound, 1.0 / p.lattice_xy, nbins / (2 * math.pi), h_start, 0.0, 0.0, *right)
+        steps_l, rels_l, costs_l = self.transitions[Side.LEFT]
+        steps_r, rels_r, costs_r = self.transitions[Side.RIGHT]
+        circles = self._active_rects.circles
+        timed = math.isfinite(deadline)
         plan = None
-        partial = (h_start, 0)
-        expanded = 0
         timed_out = False
-        side_bit = {Side.LEFT: 0, Side.RIGHT: 1}
-        while open_heap:
-            if expanded >= expansions_left or time.perf_counter() >= deadline:
-                timed_out = True
-                break
-            f, g, n = heapq.heappop(open_heap)
-            x, y, t, side, _, _, other = nodes[n]
-            key = (
-                (int(round(x * inv_res)) * 8192 + int(round(y * inv_res))) * nbins + int(round(t * inv_bin)) % nbins
-            ) * 2 + side_bit[side]
-            if key in closed:
-                continue
-            closed.add(key)
-            expanded += 1
-            if expanded > p.max_expansions:
-                timed_out = True
-                break
-            support = Pose2D(x, y, t)
-            if side is Side.LEFT:  # double-step boundary: try to finish
-                shot = self._goal_shot(support, other)
+        pending, pops = -1, 0 if timed else big
+        while True:
+            reason, n = kernels.search(
+                st, state.pose, state.link, state.hf, state.hg, state.hm, state.cell_key, state.cell_g, sp,
+                rels_l, costs_l, rels_r, costs_r, circles, self._extents, self._heuristic_params,
+                self.dist, self.direction, self.turn_from_direction, self._goal_step, pending, pops,
+            )  # fmt: skip
+            pending, pops = -1, 0 if timed else big
+            if reason == kernels.GROW:
+                state.grow()
+                pending = n
+            elif reason == kernels.GOAL_SHOT:  # double-step boundary: try to finish
+                x, y, t, g = state.pose[n].tolist()
+                parent = int(state.link[n, 1])
+                other = right if parent < 0 else Pose2D(*state.pose[parent, :3].tolist())
+                shot = self._goal_shot(Pose2D(x, y, t), other)
                 if shot is not None and g + shot[1] < bound:
-                    plan = self._extract(n, nodes, shot[0], g + shot[1])
+                    plan = self._extract(n, state, shot[0], g + shot[1])
                     break
-            flying = side.other
-            steps, rels, costs, hl, hw = self.transitions[flying]
-            c, s = math.cos(t), math.sin(t)
-            lx = x + c * rels[:, 0] - s * rels[:, 1]
-            ly = y + s * rels[:, 0] + c * rels[:, 1]
-            lt = t + rels[:, 2]
-            # navigation pose after landing and the flying foot at mid-swing (circular means)
-            nav_x, nav_y = 0.5 * (x + lx), 0.5 * (y + ly)
-            nav_t = t + 0.5 * rels[:, 2]
-            mid_t = other.theta + 0.5 * _wrap(lt - other.theta)
-            k = len(lx)
-            hits = (
-                self._active_rects.hits(
-                    np.concatenate([lx, 0.5 * (other.x + lx), nav_x]),
-                    np.concatenate([ly, 0.5 * (other.y + ly), nav_y]),
-                    np.concatenate([lt, mid_t, nav_t]),
-                    hl,
-                    hw,
-                )
-                .reshape(3, k)
-                .any(axis=0)
-            )
-            h = self._heuristic(nav_x, nav_y, nav_t)
-            gs = g + costs
-            ok = np.flatnonzero(~hits & np.isfinite(h) & (gs + h < bound))
-            if ok.size == 0:
-                continue
-            lt = _wrap(lt)
-            keys = (
-                (
-                    (np.rint(lx * inv_res).astype(np.int64) * 8192 + np.rint(ly * inv_res).astype(np.int64)) * nbins
-                    + np.rint(lt * inv_bin).astype(np.int64) % nbins
-                )
-                * 2
-                + side_bit[flying]
-            )[ok].tolist()
-            gl, hl_, fl = gs[ok].tolist(), h[ok].tolist(), (gs + eps * h)[ok].tolist()
-            xl, yl, tl = lx[ok].tolist(), ly[ok].tolist(), lt[ok].tolist()
-            for q, idx in enumerate(ok.tolist()):
-                ckey, gc = keys[q], gl[q]
-                if ckey in closed or gc >= best_g.get(ckey, math.inf):
-                    continue
-                best_g[ckey] = gc
-                m = len(nodes)
-                nodes.append((xl[q], yl[q], tl[q], flying, n, steps[idx], support))
-                if hl_[q] < partial[0]:
-                    partial = (hl_[q], m)
-                heapq.heappush(open_heap, (fl[q], gc, m))
-        result: dict[str, Any] = {"plan": plan, "expanded": expanded, "timed_out": timed_out, "partial": None}
-        if plan is None and partial[1] != 0:
-            chain = self._chain(partial[1], nodes)
-            result["partial"] = (
-                partial[0],
-                [(nodes[i][3], nodes[i][5]) for i in chain],
-                [(nodes[i][3], Pose2D(*nodes[i][:3])) for i in chain],
-            )
+                pending = n
+            elif reason == kernels.CLOCK:
+                if time.perf_counter() >= deadline:
+                    timed_out = True
+                    break
+                pops = 1
+            else:
+                timed_out = reason != kernels.EMPTY
+                break
+        result: dict[str, Any] = {"plan": plan, "expanded": int(st[2]), "timed_out": timed_out, "partial": None}
+        if plan is None and st[3] != 0:
+            chain = self._chain(int(st[3]), state)
+            result["partial"] = (float(sp[4]), [step for step, _ in chain], [pose for _, pose in chain])
         return result
 
-    @staticmethod
-    def _chain(n: int, nodes: list) -> list[int]:
+    def _chain(self, n: int, state: kernels.SearchState) -> list[tuple[tuple[Side, Footstep], tuple[Side, Pose2D]]]:
+        """The footsteps and landing poses from the root to node ``n``."""
         chain = []
-        while nodes[n][4] != -1:
-            chain.append(n)
-            n = nodes[n][4]
+        link, pose = state.link, state.pose
+        while link[n, 1] != -1:
+            side_bit, parent, j = link[n].tolist()
+            side = Side.RIGHT if side_bit else Side.LEFT
+            chain.append(((side, self.transitions[side][0][j]), (side, Pose2D(*pose[n, :3].tolist()))))
+            n = parent
         chain.reverse()
         return chain
 
-    def _extract(self, n: int, nodes: list, tail, cost: float) -> FootstepPlan:
-        chain = self._chain(n, nodes)
-        out_steps = [(nodes[i][3], nodes[i][5]) for i in chain] + [(side, step) for side, step, _ in tail]
-        poses = [(nodes[i][3], Pose2D(*nodes[i][:3])) for i in chain] + [(side, pose) for side, _, pose in tail]
+    def _extract(self, n: int, state: kernels.SearchState, tail, cost: float) -> FootstepPlan:
+        chain = self._chain(n, state)
+        out_steps = [step for step, _ in chain] + [(side, step) for side, step, _ in tail]
+        poses = [pose for _, pose in chain] + [(side, pose) for side, _, pose in tail]
         return FootstepPlan("ok", out_steps, poses, cost=cost)
-
-
-def _wrap(a):
-    return np.mod(np.asarray(a) + np.pi, 2.0 * np.pi) - np.pi
 
 
 def _downhill_direction(dist: np.ndarray, resolution: float) -> np.ndarray:
