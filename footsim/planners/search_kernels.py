@@ -291,47 +291,13 @@ def search(
     while True:
         if pending >= 0:
             if link[pending, 0] == 0:  # a left foot landed last: the right flies next
-                done = _expand(
-                    st,
-                    pose,
-                    link,
-                    hf,
-                    hg,
-                    hm,
-                    cell_key,
-                    cell_g,
-                    sp,
-                    rels_r,
-                    costs_r,
-                    circles,
-                    feet,
-                    hp,
-                    dist,
-                    direction,
-                    turn_from,
-                    pending,
-                )
+                rels, costs = rels_r, costs_r
             else:
-                done = _expand(
-                    st,
-                    pose,
-                    link,
-                    hf,
-                    hg,
-                    hm,
-                    cell_key,
-                    cell_g,
-                    sp,
-                    rels_l,
-                    costs_l,
-                    circles,
-                    feet,
-                    hp,
-                    dist,
-                    direction,
-                    turn_from,
-                    pending,
-                )
+                rels, costs = rels_l, costs_l
+            done = _expand(
+                st, pose, link, hf, hg, hm, cell_key, cell_g, sp, rels, costs,
+                circles, feet, hp, dist, direction, turn_from, pending,
+            )  # fmt: skip
             if not done:
                 return GROW, pending
             pending = -1
