@@ -5,8 +5,8 @@ setting changed (CPU time; the variants interleaved round by round, median repor
     python scripts/pybullet_tick_cost.py [rounds=7] [ticks=500]
 
 Variants: fewer solver iterations, no rolling friction, no rolling or spinning friction, and
-pyramid instead of cone friction (Bullet's ``enableConeFriction=0``).  docs/BENCHMARKS.md says
-which of them still walk.
+pyramid instead of cone friction (Bullet's ``enableConeFriction=0``).  Which of them still walked
+on FootstepNav-v0's PyBullet setup: ``git show dd38ad5:docs/BENCHMARKS.md`` (session 11).
 """
 
 from __future__ import annotations
