@@ -30,7 +30,7 @@ def _tool(name: str) -> list[str]:
 
 
 def bench_ppo(backend: str = "mujoco", workers: tuple[int, ...] = (1, 2), steps: int = 4096) -> list[dict]:
-    """One ``footsim-train`` of ``steps`` env steps per worker count (the agent's defaults: 512 steps
+    """One ``footsim-train`` of ``steps`` env steps per worker count (the agent's defaults: ``agent.n_steps``
     per worker and rollout): PPO steps/s over the learning loop (``train_info.json``: rollouts and
     updates, not the process start) and the command's wall time."""
     rows = []
