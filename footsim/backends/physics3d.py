@@ -687,6 +687,8 @@ class Physics3DBackend(Backend):
         done = unreachable = 0  # ticks run in earlier parts (a phase reset re-plans the rest)
         while True:
             ticks, n_ticks, ended = 0, len(trajectory), None
+            if not n_ticks:  # a phase reset ended the call's last half step: no ticks left
+                break
             run = self._ticks(trajectory)
             if hook is not None:  # the same runs of ticks, cut where a frame is due
                 run = _filmed(run, hook, done, due)
