@@ -12,8 +12,10 @@ from footsim.backends.control import (
     TrunkStabilizer,
     all_finite,
     control_tick,
+    control_tick_packed,
     fused_roll_pitch,
     state_ok,
+    state_ok_packed,
     write_targets,
 )
 
@@ -141,6 +143,40 @@ def test_typed_entry_is_the_compiled_kernel_without_dispatch():
         entry(targets, trunk, k, gains, quat, True, None, None, slot, None, a, ids)
         control_tick(targets, trunk, k, gains, quat, True, None, None, slot, None, b, ids)
         np.testing.assert_array_equal(_bits(a), _bits(b))
+
+
+@pytest.mark.parametrize("jit", [True, False], ids=["compiled", "python"])
+def test_packed_kernels_are_the_kernels_on_the_same_arrays(jit):
+    """``pack`` holds the arrays themselves (the kernels' writes land in them) and the packed
+    kernels give the direct calls' results to the bit; ``python``: the objects and functions that
+    ``NUMBA_DISABLE_JIT=1`` runs (``_PythonPacked``, ``py_func``)."""
+    from footsim.compiled import _PythonPacked, pack, typed_entry
+
+    rng = np.random.default_rng(7)
+    targets, trunk = rng.normal(size=(6, 12)), rng.normal(scale=0.2, size=(6, 6))
+    gains, ids = TrunkStabilizer(**GAINS).gains, np.arange(12, dtype=np.intp)
+    quat = rng.normal(size=4)
+    laws = [(np.zeros((2, 12)), np.zeros(2, dtype=np.int64), np.vstack([rng.uniform(0, 0.05, 12), np.zeros(12)]))]
+    laws.append(tuple(a.copy() for a in laws[0]))
+    (delay_a, slot_a, ff_a), (delay_b, slot_b, ff_b) = laws
+    a, b = np.zeros(12), np.zeros(12)
+    args = (targets, trunk, gains, quat, False, None, delay_a, slot_a, ff_a, a, ids)
+    packed = pack(args) if jit else _PythonPacked(args)
+    tick = typed_entry(control_tick_packed, 0, packed) if jit else control_tick_packed.py_func
+    for k in range(6):
+        tick(k, packed)
+        control_tick(targets, trunk, k, gains, quat, False, None, delay_b, slot_b, ff_b, b, ids)
+        for x, y in ((a, b), (delay_a, delay_b), (ff_a, ff_b)):
+            np.testing.assert_array_equal(_bits(x), _bits(y))
+        np.testing.assert_array_equal(slot_a, slot_b)
+    state, tilt_a, tilt_b = np.array([0.1, 0.2, 0.3]), np.zeros(2), np.zeros(2)
+    unit = quat / np.linalg.norm(quat)
+    check = (np.zeros(1, dtype=np.int8), np.zeros(2, dtype=np.int32), np.array([1], dtype=np.intp), (state,))
+    check_a = (*check, None, math.inf, state, unit, False, False, None, None, 50.0, tilt_a)
+    packed = pack(check_a) if jit else _PythonPacked(check_a)
+    ok = (typed_entry(state_ok_packed, packed) if jit else state_ok_packed.py_func)(packed)
+    assert ok == state_ok(*check, None, math.inf, state, unit, False, False, None, None, 50.0, tilt_b)
+    np.testing.assert_array_equal(_bits(tilt_a), _bits(tilt_b))
 
 
 def test_all_finite_matches_numpy():

@@ -9,7 +9,15 @@ import math
 import numpy as np
 import pytest
 
-from footsim.backends.control import PID, TrunkPID, contact_watch, node_tick, pid_update, trunk_pid_shift
+from footsim.backends.control import (
+    PID,
+    TrunkPID,
+    contact_watch,
+    node_tick,
+    node_tick_packed,
+    pid_update,
+    trunk_pid_shift,
+)
 from footsim.walk import DoubleStep, Footstep, FootstepGeometry, LegGeometry, QuinticWalk, StepLimits, WalkParams
 from footsim.walk.engine import WalkState
 from footsim.walk.ik import ik_legs, leg_fk, legs_ik, legs_ik_tick, rotation_from_rpy
@@ -187,6 +195,39 @@ def test_node_tick_updates_shifts_and_holds_as_the_walk_node_does(every, with_pi
         np.testing.assert_allclose(node, [last_update, last_time], atol=0)
     assert sent_updates == (n if every else len(set(updates)))
     assert every or sent_updates < n
+
+
+def test_the_packed_node_tick_is_the_node_tick_bit_for_bit():
+    """The driver's call (``node_tick_packed`` of ``footsim.compiled.pack``) writes what the direct
+    call writes, into the packed arrays themselves, and reads the packed base orientation as it is
+    at each tick (a live view, written in place between the ticks)."""
+    from footsim.compiled import pack, typed_entry
+
+    engine, trajectory = _walk_trajectory(6)
+    gains = (0.004, 0.3, 0.001, -0.002, 0.002)
+    runs = []
+    for packed in (True, False):
+        pid = TrunkPID(PID(*gains), PID(*gains))
+        targets, trunk = trajectory.joint_targets.copy(), trajectory.trunk_in_support.copy()
+        node, held, quat, command = np.zeros(2), np.zeros(18), np.zeros(4), np.zeros(12)
+        ids, slot = np.arange(12, dtype=np.intp), np.zeros(2, dtype=np.int64)
+        args = (
+            50.0, trajectory.t, node, held, targets, trunk, pid.arrays, trajectory.local_poses,
+            engine.ik_legs, None, quat, False, None, None, slot, None, command, ids,
+        )  # fmt: skip
+        packed_args = pack(args)
+        tick = typed_entry(node_tick_packed, 0, packed_args)
+        rng, sent = np.random.default_rng(8), []
+        for k in range(len(trajectory)):
+            quat[:] = np.roll(Rotation.from_rotvec(rng.normal(scale=0.05, size=3)).as_quat(), 1)  # (w, x, y, z)
+            if packed:
+                tick(k, packed_args)
+            else:
+                node_tick(k, *args)
+            sent.append(command.copy())
+        runs.append((np.array(sent), targets, trunk, node, held, pid.pitch.state.copy()))
+    for a, b in zip(*runs):
+        np.testing.assert_array_equal(_bits(a), _bits(b))
 
 
 def test_contact_watch_is_the_phase_reset_window_of_the_stepping_half_steps():

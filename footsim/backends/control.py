@@ -6,7 +6,9 @@ roll/pitch of the base from its orientation quaternion, the trunk stabilizer's c
 walk's joint targets, the control-latency line, the servo feed-forward and the write of the leg
 commands.  With the walk node's options (an engine update rate, the trunk PID, the phase reset)
 it runs :func:`node_tick` instead: the engine-update/hold rule, the trunk PID and the leg IK of
-the shifted trunk, then :func:`control_tick`, in one call.  Every ``contact_check_every`` ticks
+the shifted trunk, then :func:`control_tick`, in one call.  The driver calls either with its
+arguments but the tick packed once per trajectory (:func:`control_tick_packed`,
+:func:`node_tick_packed`).  Every ``contact_check_every`` ticks
 :func:`state_ok` checks the same arrays (fatal warnings, finite state, speed and position bounds,
 right side up) and records the tilt.
 
@@ -236,6 +238,23 @@ def node_tick(
 
 
 @compiled
+def control_tick_packed(k: int, packed) -> None:
+    """:func:`control_tick` of tick ``k``, its other arguments (targets, trunk, gains, quat, …, in
+    order) from ``packed`` (``footsim.compiled.pack``): the driver's per-tick call, one argument
+    to unbox instead of each array."""
+    args = packed.args
+    control_tick(args[0], args[1], k, *args[2:])
+
+
+@compiled
+def node_tick_packed(k: int, packed) -> None:
+    """:func:`node_tick` of tick ``k``, its other arguments (rate, times, …, in order) from
+    ``packed`` (``footsim.compiled.pack``): the driver's per-tick call, one argument to unbox
+    instead of each array."""
+    node_tick(k, *packed.args)
+
+
+@compiled
 def contact_watch(
     state: np.ndarray, phase: np.ndarray, support: np.ndarray, stepping: tuple[int, int], start: float, out: np.ndarray
 ) -> None:
@@ -328,6 +347,13 @@ def state_ok(
         return False
     tilt[0], tilt[1] = fused_tilt(bottom[0], bottom[1])
     return True
+
+
+@compiled
+def state_ok_packed(packed) -> bool:
+    """:func:`state_ok` of the arguments in ``packed`` (``footsim.compiled.pack``): the driver's
+    periodic call, one argument to unbox instead of each array."""
+    return state_ok(*packed.args)
 
 
 # -- the laws' parameters ----------------------------------------------------------------------

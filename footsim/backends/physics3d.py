@@ -30,13 +30,13 @@ from footsim.backends.control import (
     TrunkStabilizer,
     all_finite,
     contact_watch,
-    control_tick,
+    control_tick_packed,
     fused_roll_pitch,
-    node_tick,
-    state_ok,
+    node_tick_packed,
+    state_ok_packed,
     write_targets,
 )
-from footsim.compiled import typed_entry
+from footsim.compiled import pack, typed_entry
 from footsim.geometry import Pose2D
 from footsim.robots.spec import RobotSpec
 from footsim.scene import Scene
@@ -251,11 +251,6 @@ class PhysicsSim(ABC):
 _STEPPING = (int(WalkState.START_STEP), int(WalkState.WALKING))
 
 
-def _layouts(*arrays: np.ndarray) -> tuple:
-    """What numba's types of these arrays depend on (dtype, dimensions, layout, writability)."""
-    return tuple((a.dtype, a.ndim, a.flags.num) for a in arrays)  # flags.num: every flag as bits
-
-
 def _filmed(
     run: Callable[[int, int], int | None], hook: FrameHook, done: int, due: list[int]
 ) -> Callable[[int, int], int | None]:
@@ -402,7 +397,7 @@ class Physics3DBackend(Backend):
         self._delay: np.ndarray | None = None  # the latency line: targets not yet sent
         self._delay_slot = np.zeros(2, dtype=np.int64)  # [row of the oldest target, fill the line first]
         self._entries: dict = {}  # compiled entries of the control tick and the state check
-        self._check: tuple = (None, None, ())  # the state check's entry, state and arguments
+        self._check: tuple = (None, None, None)  # the state check's entry, state and packed arguments
         self._push_ticks: tuple[int, int] | None = None  # (interval, duration) in control ticks
         self._push_force = 0.0
         self._tick = 0  # control ticks since reset
@@ -527,16 +522,15 @@ class Physics3DBackend(Backend):
         if walk.engine_freq is not None or pid is not None or reset:
             return self._node_ticks(trajectory, gains, pid, reset)
         targets, trunk = trajectory.joint_targets, trajectory.trunk_in_support  # roll, pitch: as in .trunk
-        delay, slot = self._delay_line(), self._delay_slot
-        tick = self._control_tick(targets, trunk, gains, delay)
-        (quat, w_last, frame, feed_forward, command, leg_ids), read, write, push = self._tick_io(gains is not None)
+        tick, packed = self._control_tick(targets, trunk, gains, self._delay_line())
+        read, write, push = self._tick_io(gains is not None)
         advance, substeps = self.sim.advance, self.substeps
 
         def run(k0: int, k1: int) -> int | None:
             for k in range(k0, k1):
                 if read is not None:
                     read()
-                tick(targets, trunk, k, gains, quat, w_last, frame, delay, slot, feed_forward, command, leg_ids)
+                tick(k, packed)
                 if write is not None:
                     write()
                 if push is not None:
@@ -563,16 +557,14 @@ class Physics3DBackend(Backend):
         # a phase reset leaves the rest unsolved), and written in place by the node.
         targets, trunk = np.empty((len(trajectory), 12)), trajectory.trunk_in_support.copy()
         solve, copied = trajectory.solve, 0
-        delay, slot = self._delay_line(), self._delay_slot
-        reads_state = gains is not None or pid is not None
-        (quat, w_last, frame, feed_forward, command, leg_ids), read, write, push = self._tick_io(reads_state)
+        read, write, push = self._tick_io(gains is not None or pid is not None)
         advance, substeps, sole_forces = self.sim.advance, self.substeps, self.sim.sole_forces
         times = trajectory.t
         rate = 0.0 if walk.engine_freq is None else float(walk.engine_freq)  # node_tick: 0 = every tick
-        node, held, local = self._node, self._held, trajectory.local_poses
         arrays = pid.arrays if pid is not None else None
-        legs = self.engine.ik_legs
-        tick = self._node_tick(targets, trunk, times, local, arrays, legs, gains, delay)
+        tick, packed = self._node_tick(
+            rate, targets, trunk, times, trajectory.local_poses, arrays, self.engine.ik_legs, gains, self._delay_line()
+        )
         # Per tick, the phase reset's read after the physics (control.contact_watch): the flying
         # foot's index in sole_forces() in the contact window, else -1.
         watch: list[int] | None = None
@@ -593,10 +585,7 @@ class Physics3DBackend(Backend):
             for k in range(k0, k1):
                 if read is not None:
                     read()
-                tick(
-                    k, rate, times, node, held, targets, trunk, arrays, local, legs,
-                    gains, quat, w_last, frame, delay, slot, feed_forward, command, leg_ids,
-                )  # fmt: skip
+                tick(k, packed)
                 if write is not None:
                     write()
                 if push is not None:
@@ -608,32 +597,35 @@ class Physics3DBackend(Backend):
 
         return run
 
-    def _tick_io(self, reads_state: bool) -> tuple[tuple, Callable | None, Callable | None, Callable | None]:
-        """What one tick reads and sends around the control law, for both tick loops: the state
-        contract's arrays (quat, w_last, frame, feed_forward, command, leg_ids), the state read
-        (only when the law reads the base and the sim's arrays are not live views), the command
-        write (sims without live views) and the push schedule's tick (None: no pushes)."""
+    def _tick_io(self, reads_state: bool) -> tuple[Callable | None, Callable | None, Callable | None]:
+        """What one tick does around the control law, for both tick loops: the state read (only
+        when the law reads the base and the sim's arrays are not live views), the command write
+        (sims without live views) and the push schedule's tick (None: no pushes)."""
         s = self.sim.state
-        arrays = (s.quat, s.w_last, s.frame, s.feed_forward, s.command, s.leg_ids)
         read = None if (s.live or not reads_state) else self.sim.read_state
         write = None if s.live else self.sim.write_command
         push = None if self._push_ticks is None else self._push_tick
-        return arrays, read, write, push
+        return read, write, push
 
     def _control_tick(self, targets: np.ndarray, trunk: np.ndarray, gains: np.ndarray | None, delay):
-        """``control_tick``'s compiled code for these arrays and the sim's state contract."""
-        s = self.sim.state
-        key = (control_tick, s, gains is None, delay is None, _layouts(targets, trunk))  # what decides the types
-        args = (targets, trunk, 0, gains, *self._law_args(delay))
-        return self._typed(control_tick, key, args)
+        """``control_tick``'s compiled code for these arrays and the sim's state contract, and its
+        arguments but the tick, packed: ``(entry, packed)``, called ``entry(k, packed)``."""
+        packed = pack((targets, trunk, gains, *self._law_args(delay)))
+        return self._packed_entry(control_tick_packed, 0, packed), packed
 
-    def _node_tick(self, targets, trunk, times, local, pid, legs, gains, delay):
+    def _node_tick(self, rate: float, targets, trunk, times, local, pid, legs, gains, delay):
         """``node_tick``'s compiled code for these arrays, the trunk PID's (None: off), the engine's
-        legs and the sim's state contract."""
-        s = self.sim.state
-        key = (node_tick, s, pid is None, gains is None, delay is None, _layouts(targets, trunk, times, local))
-        args = (0, 0.0, times, self._node, self._held, targets, trunk, pid, local, legs, gains)
-        return self._typed(node_tick, key, args + self._law_args(delay))
+        legs and the sim's state contract, and its arguments but the tick, packed: ``(entry,
+        packed)``, called ``entry(k, packed)``."""
+        args = (rate, times, self._node, self._held, targets, trunk, pid, local, legs, gains)
+        packed = pack(args + self._law_args(delay))
+        return self._packed_entry(node_tick_packed, 0, packed), packed
+
+    def _packed_entry(self, kernel, *example):
+        """``kernel``'s compiled code for the types of ``example``: a tick (the control ticks) or
+        nothing (the state check), then packed arguments, whose type (that of what they hold) is
+        the key."""
+        return self._typed(kernel, (kernel, example[-1]._numba_type_), example)
 
     def _law_args(self, delay) -> tuple:
         """``control_tick``'s arguments after (targets, trunk, k, gains): the state contract's base
@@ -695,6 +687,8 @@ class Physics3DBackend(Backend):
         done = unreachable = 0  # ticks run in earlier parts (a phase reset re-plans the rest)
         while True:
             ticks, n_ticks, ended = 0, len(trajectory), None
+            if not n_ticks:  # a phase reset ended the call's last half step: no ticks left
+                break
             run = self._ticks(trajectory)
             if hook is not None:  # the same runs of ticks, cut where a frame is due
                 run = _filmed(run, hook, done, due)
@@ -769,12 +763,12 @@ class Physics3DBackend(Backend):
         s = self.sim.state
         if not s.live:
             self.sim.read_state(velocity=True)
-        check, state, args = self._check
-        if state is not s:  # the arguments are the contract's arrays: built once per state
-            args = s.check_args(self.out_of_bounds, self._tilt_buffer)
-            check = self._typed(state_ok, (state_ok, s), args)
-            self._check = check, s, args
-        if check(*args):
+        check, state, packed = self._check
+        if state is not s:  # the arguments are the contract's arrays: packed once per state
+            packed = pack(s.check_args(self.out_of_bounds, self._tilt_buffer))
+            check = self._packed_entry(state_ok_packed, packed)
+            self._check = check, s, packed
+        if check(packed):
             roll, pitch = self._tilt_buffer.tolist()
             return None, self._record_tilt(roll, pitch)
         return self._full_status()
@@ -824,6 +818,6 @@ class Physics3DBackend(Backend):
         return self.sim.render(overlay, *self.render_size, self.camera, self.planar_pose())
 
     def close(self) -> None:
-        self._entries.clear()  # they hold the sim's state arrays
-        self._check = (None, None, ())
+        self._entries.clear()
+        self._check = (None, None, None)  # its pack holds the sim's state arrays
         self.sim.close()

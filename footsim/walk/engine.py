@@ -84,6 +84,16 @@ _TRUNK_CHANNELS = np.array([X, Y, Z, PITCH, YAW])
 # and the largest outward detour [m] the flying foot may take around it.
 _SWEEP_SAMPLES = np.linspace(0.0, 1.0, 25)[1:-1]
 _MAX_DETOUR = 0.1
+# The arrays of a trajectory without ticks (t, phase, support, state, local and support poses):
+# shared, as nothing can be written into an array without elements.
+_EMPTY = (
+    np.zeros(0),
+    np.zeros(0),
+    np.zeros(0, dtype=bool),
+    np.zeros(0, dtype=np.int8),
+    np.zeros((3, 6, 0)),
+    np.zeros((3, 0)),
+)
 # The trunk's hand-over state: (position, velocity, acceleration) of each of the six channels, in
 # Python floats (the handful of operations per half step cost less on floats than on numpy arrays).
 TrunkState = list[tuple[float, float, float]]
@@ -367,6 +377,7 @@ class QuinticWalk:
         for local in self._half_tick_times:
             local.setflags(write=False)  # shared by every half step's plan
         self._layouts: dict[tuple[tuple[WalkState, Side], ...], _CallLayout] = {}
+        self._tick_times: dict[int, np.ndarray] = {}  # _plan's local tick times by number of ticks
         if joint_limits is None:
             self._limits = None
         else:
@@ -514,8 +525,8 @@ class QuinticWalk:
             raise ValueError(f"tick {k} is in a {plan.kind.name} half step: no flying foot to end it")
         local_time = float(plan.tick_times[k - (layout.half_step_ends[h - 1] if h else 0)])
         flying = plan.support.other
-        foot = trajectory.local_poses[0 if flying is Side.LEFT else 1, :, k]
-        touchdown, height = Pose2D(float(foot[X]), float(foot[Y]), float(foot[YAW])), float(foot[Z])
+        foot_x, foot_y, height, _, _, foot_yaw = trajectory.local_poses[0 if flying is Side.LEFT else 1, :, k].tolist()
+        touchdown = Pose2D(foot_x, foot_y, foot_yaw)
         # The trunk's state at the touchdown (support frame), then in the new support frame.
         trunk = channels[h * 10 + 5 : h * 10 + 10]  # after the flying foot's five channels
         x, y, z, pitch, yaw = (knots_state(knots, local_time) for knots in trunk)
@@ -566,6 +577,10 @@ class QuinticWalk:
 
     def _plan(self, kind, support, feet, last, landing, duration, phase_start, phase_span, last_z=0.0) -> _HalfStep:
         n_ticks = int(round(duration / self.control_dt))
+        tick_times = self._tick_times.get(n_ticks)
+        if tick_times is None:  # the same few lengths every call: computed once each
+            tick_times = self._tick_times[n_ticks] = np.arange(1, n_ticks + 1) * self.control_dt
+            tick_times.setflags(write=False)  # shared by every half step's plan of this length
         return _HalfStep(
             kind=kind,
             support=support,
@@ -573,7 +588,7 @@ class QuinticWalk:
             duration=duration,
             last=last,
             landing=landing,
-            tick_times=np.arange(1, n_ticks + 1) * self.control_dt,
+            tick_times=tick_times,
             phase_start=phase_start,
             phase_span=phase_span,
             last_z=last_z,
@@ -898,13 +913,16 @@ class QuinticWalk:
         )
 
     def _empty_trajectory(self, executed: DoubleStep | None = None, interfered: int = 0) -> WalkTrajectory:
+        t, phase, support, state, local, support_poses = _EMPTY
         return WalkTrajectory(
             dt=self.control_dt,
-            t=np.zeros(0),
-            phase=np.zeros(0),
-            support=np.zeros(0, dtype=bool),
-            state=np.zeros(0, dtype=np.int8),
+            t=t,
+            phase=phase,
+            support=support,
+            state=state,
             executed=executed,
             feet=self._feet,
             interfered=interfered,
+            local_poses=local,
+            support_poses=support_poses,
         )
