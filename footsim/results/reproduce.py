@@ -5,7 +5,12 @@ that differs from the data files already there; with ``train=true``, run the pla
 The study plan (``conf/study/v1.yaml``) names the conditions (backend, task, noise, training seeds
 and the ``footsim-train`` overrides of one seed), the scene sets, the baselines, the page's tables and
 the thesis side by side.  A condition's policies are the zoo entries ``zoo_name`` gives for its seeds
-(``2d_nav_s0`` ...); a seed without an entry is listed as missing, not evaluated.
+(``2d_nav_s0`` ...); a seed without an entry is listed as missing, not evaluated.  Its transfer
+matrices (``matrices:``) name rows (trained conditions), backends and randomization presets; each
+cell is a condition too (an existing one that evaluates the same thing, or one derived for the
+cell), so the matrices are evaluated, stored and compared like every other row, and the page shows
+them as tables and heatmaps (``matrix_<title>.png``) with what each 3D-trained row keeps of its
+success on the other 3D backends.
 
 Data files (``out=``, default ``docs/results/``): ``runs.csv``, one row per evaluation (condition,
 scene set, policy seed or baseline) with its outcome shares and success time and steps;
@@ -44,7 +49,7 @@ from footsim.utils import atomic_save, atomic_write_text
 DEFAULT_PLAN = "study/v1.yaml"  # under conf/
 #: Per evaluation: the identity of a row of runs.csv.
 KEY = ("condition", "scene_set", "kind", "name")
-INFO = ("seed", "backend", "task", "noise", "scenes_seed", "n_scenes")
+INFO = ("seed", "backend", "task", "noise", "randomization", "scenes_seed", "n_scenes")
 METRICS = (
     "success",
     "timeout",
@@ -56,6 +61,9 @@ METRICS = (
     "success_time_mean",
     "success_steps_mean",
 )
+#: A policy trained with randomization on one 3D backend keeps at least this share of its success
+#: on the other 3D backends (the study's transfer target).
+RETENTION_TARGET = 0.90
 RUNS_FILE = "runs.csv"
 CONDITIONS_FILE = "conditions.csv"
 STAT_COLUMNS = ("n", "mean", "ci_low", "ci_high", "iqm", "n_undefined")
@@ -78,11 +86,33 @@ class Condition:
     parent: str | None = None
     policies: str | None = None  # evaluate this condition's zoo entries (no training of its own)
     n_scenes: int | None = None  # at most this many scenes of each set (3D evaluation is slow)
+    randomization: str = "none"  # the domain randomization (conf/randomization) it is evaluated under
+    sets: tuple[str, ...] | None = None  # the scene sets it is evaluated on (None: every set of the plan)
 
     @property
     def source(self) -> str:
         """The condition whose zoo entries are evaluated here."""
         return self.policies or self.name
+
+
+@dataclass(frozen=True)
+class Matrix:
+    """A transfer matrix: each row's policies (a trained condition) evaluated on each backend under
+    each randomization.  ``cells[(row, backend, randomization)]`` is the condition that evaluates it:
+    a condition of the plan with the same policies, backend, task, noise and randomization, or one
+    derived for the cell (``<row condition>_on_<backend>[_dr_<randomization>]``)."""
+
+    title: str
+    task: str
+    rows: dict[str, str]  # row label -> the trained condition whose policies the row evaluates
+    backends: tuple[str, ...]
+    randomizations: tuple[str, ...]
+    cells: dict[tuple[str, str, str], str]
+    scene_set: str  # the set its tables and heatmaps show
+
+    @property
+    def slug(self) -> str:
+        return re.sub(r"[^a-z0-9]+", "_", self.title.lower()).strip("_")
 
 
 @dataclass(frozen=True)
@@ -97,6 +127,7 @@ class Plan:
     tables: tuple[dict, ...]
     thesis: tuple[dict, ...]
     paths: tuple[dict, ...] = ()  # per-scene path plots: {condition, set, scenes}
+    matrices: tuple[Matrix, ...] = ()  # transfer matrices; their cells are conditions too
     raw: dict = field(repr=False, default_factory=dict)
 
     def entry(self, condition: Condition, seed: int) -> str:
@@ -146,7 +177,19 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
         if n <= 0:
             raise PlanError(f"{path}: {where}n_scenes must be > 0, got {n}")
         sets[name] = (seed, n)
-    known = {"title", "backend", "task", "noise", "seeds", "train", "parent", "policies", "n_scenes"}
+    known = {
+        "title",
+        "backend",
+        "task",
+        "noise",
+        "seeds",
+        "train",
+        "parent",
+        "policies",
+        "n_scenes",
+        "randomization",
+        "sets",
+    }
     conditions = {}
     for name, spec_ in need(raw, "conditions", dict, "").items():
         where = f"conditions.{name}."
@@ -161,6 +204,7 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
         cap = spec_.get("n_scenes")
         if cap is not None and (not isinstance(cap, int) or isinstance(cap, bool) or cap <= 0):
             raise PlanError(f"{path}: {where}n_scenes must be a positive integer, got {cap!r}")
+        cond_sets = _set_names(spec_.get("sets"), sets, f"{path}: {where}sets")
         conditions[name] = Condition(
             name=name,
             title=str(spec_.get("title", name)),
@@ -172,6 +216,8 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
             parent=spec_.get("parent"),
             policies=spec_.get("policies"),
             n_scenes=cap,
+            randomization=str(spec_.get("randomization", "none")),
+            sets=cond_sets,
         )
     for cond in conditions.values():
         for key in ("parent", "policies"):
@@ -215,6 +261,7 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
             raise PlanError(
                 f"{path}: {where}scenes: scene indices 0..{n_set - 1} of set {spec_['set']!r}, got {scenes!r}"
             )
+    matrices = tuple(_matrix(path, i, spec_, conditions, sets) for i, spec_ in enumerate(raw.get("matrices") or ()))
     zoo_name = str(raw.get("zoo_name", "{condition}_s{seed}"))
     return Plan(
         path=path,
@@ -227,7 +274,84 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
         tables=tables,
         thesis=thesis,
         paths=paths,
+        matrices=matrices,
         raw=raw,
+    )
+
+
+def _set_names(value: Any, sets: dict, where: str) -> tuple[str, ...] | None:
+    if value is None:
+        return None
+    if not isinstance(value, list) or not value or any(v not in sets for v in value):
+        raise PlanError(f"{where}: a list of the plan's scene sets ({', '.join(sets)}), got {value!r}")
+    return tuple(value)
+
+
+def _matrix(path: Path, i: int, spec: Any, conditions: dict[str, Condition], sets: dict) -> Matrix:
+    """Read ``matrices[i]`` and add the conditions its cells need to ``conditions``."""
+    where = f"{path}: matrices[{i}]."
+    if not isinstance(spec, dict):
+        raise PlanError(f"{where[:-1]} must be a mapping")
+    known = {"title", "task", "rows", "backends", "randomization", "n_scenes", "sets"}
+    unknown = sorted(set(spec) - known)
+    if unknown:
+        raise PlanError(f"{where[:-1]}: unknown key(s) {unknown}; valid: {sorted(known)}")
+    for key in ("task", "rows", "backends"):
+        if key not in spec:
+            raise PlanError(f"{where}{key} is missing")
+    rows = spec["rows"]
+    if not isinstance(rows, dict) or not rows:
+        raise PlanError(f"{where}rows must map a row label to a trained condition, got {rows!r}")
+    for label, name in rows.items():
+        if name not in conditions or conditions[name].policies:
+            raise PlanError(f"{where}rows.{label}: {name!r} is not a trained condition of the plan")
+    backends = spec["backends"]
+    if not isinstance(backends, list) or not backends or not all(isinstance(b, str) for b in backends):
+        raise PlanError(f"{where}backends must be a list of backend names, got {backends!r}")
+    randomizations = spec.get("randomization", ["none"])
+    if not isinstance(randomizations, list) or not randomizations:
+        raise PlanError(f"{where}randomization must be a list of conf/randomization presets, got {randomizations!r}")
+    cap = spec.get("n_scenes")
+    if cap is not None and (not isinstance(cap, int) or isinstance(cap, bool) or cap <= 0):
+        raise PlanError(f"{where}n_scenes must be a positive integer, got {cap!r}")
+    cell_sets = _set_names(spec.get("sets"), sets, f"{where}sets")
+    task = str(spec["task"])
+    cells = {}
+    for label, source in rows.items():
+        row = conditions[source]
+        for backend in backends:
+            for rand in map(str, randomizations):
+                same = [
+                    c.name
+                    for c in conditions.values()
+                    if c.source == source
+                    and (c.backend, c.task, c.noise, c.randomization) == (backend, task, row.noise, rand)
+                ]
+                if same:
+                    cells[(label, backend, rand)] = same[0]
+                    continue
+                name = f"{source}_on_{backend}" + ("" if rand == "none" else f"_dr_{rand}")
+                shown = "" if rand == "none" else f", randomization {rand}"
+                conditions[name] = Condition(
+                    name=name,
+                    title=f"{row.title} policy on {backend}{shown}",
+                    backend=backend,
+                    task=task,
+                    noise=row.noise,
+                    policies=source,
+                    n_scenes=None if backend == "pymunk" else cap,  # 2D evaluation is cheap
+                    randomization=rand,
+                    sets=cell_sets,
+                )
+                cells[(label, backend, rand)] = name
+    return Matrix(
+        title=str(spec.get("title", f"matrix {i}")),
+        task=task,
+        rows={str(k): str(v) for k, v in rows.items()},
+        backends=tuple(backends),
+        randomizations=tuple(map(str, randomizations)),
+        cells=cells,
+        scene_set=(cell_sets or tuple(sets))[0],
     )
 
 
@@ -239,7 +363,8 @@ def parse_target(text: str, where: str = "target") -> tuple[str, float]:
 
 
 def select(plan: Plan, only: str | None) -> list[Condition]:
-    """The conditions ``only`` picks: ``2d`` (pymunk), ``3d`` (the 3D backends), or condition names."""
+    """The conditions ``only`` picks: ``2d`` (pymunk), ``3d`` (the 3D backends), ``matrix`` (every
+    cell of the transfer matrices), or condition names."""
     conds = list(plan.conditions.values())
     if not only:
         return conds
@@ -249,10 +374,14 @@ def select(plan: Plan, only: str | None) -> list[Condition]:
             picked += [c for c in conds if c.backend == "pymunk"]
         elif item == "3d":
             picked += [c for c in conds if c.backend != "pymunk"]
+        elif item == "matrix":
+            picked += [plan.conditions[name] for m in plan.matrices for name in m.cells.values()]
         elif item in plan.conditions:
             picked.append(plan.conditions[item])
         else:
-            raise PlanError(f"only={only}: {item!r} is neither 2d, 3d nor a condition ({', '.join(plan.conditions)})")
+            raise PlanError(
+                f"only={only}: {item!r} is neither 2d, 3d, matrix nor a condition ({', '.join(plan.conditions)})"
+            )
     return list(dict.fromkeys(picked))
 
 
@@ -271,6 +400,7 @@ class Job:
     noise: str
     scenes_seed: int
     n_scenes: int
+    randomization: str = "none"
 
     @property
     def key(self) -> tuple[str, str, str, str]:
@@ -289,9 +419,18 @@ def plan_jobs(
     jobs, missing = [], []
     for cond in conditions:
         for set_name in sets:
+            if cond.sets is not None and set_name not in cond.sets:
+                continue
             seed, n = plan.scene_sets[set_name]
             n = min([n, *(cap for cap in (cond.n_scenes, n_scenes) if cap is not None)])
-            common = dict(backend=cond.backend, task=cond.task, noise=cond.noise, scenes_seed=seed, n_scenes=n)
+            common = dict(
+                backend=cond.backend,
+                task=cond.task,
+                noise=cond.noise,
+                randomization=cond.randomization,
+                scenes_seed=seed,
+                n_scenes=n,
+            )
             for s in plan.seeds(cond):
                 entry = plan.entry(cond, s)
                 if entry not in available:
@@ -331,9 +470,11 @@ def job_env_and_controller(job: Job, root: str | Path) -> tuple[Any, Any]:
             asked["task"] = job.task
         if saved.noise.get("name", "none") != job.noise:
             asked["noise"] = job.noise
+        if (saved.get("randomization") or {}).get("name", "none") != job.randomization:
+            asked["randomization"] = job.randomization
         run_cfg = eval_run_config(run_dir, OmegaConf.create(asked))
         return make_env(run_cfg), PolicyController(LoadedPolicy(run_dir))
-    env = FootstepEnv(backend=job.backend, task=job.task, noise=job.noise)
+    env = FootstepEnv(backend=job.backend, task=job.task, noise=job.noise, randomization=job.randomization)
     controller_cfg = fconf.to_plain(fconf.compose("eval", [f"controller={job.name}"]).controller)
     return env, make_controller(env, controller_cfg)
 
@@ -596,6 +737,8 @@ def render_page(plan: Plan, runs: list[dict], cond_rows: list[dict], root: Path,
                     ]
                     lines.append("| " + " | ".join(str(c) for c in cells) + " |")
         lines.append("")
+    for matrix in plan.matrices:
+        lines += matrix_lines(plan, matrix, cstats, data_dir)
     lines += thesis_table(plan, cstats)
     lines += [
         "## Plots",
@@ -615,6 +758,120 @@ def render_page(plan: Plan, runs: list[dict], cond_rows: list[dict], root: Path,
         )
     lines.append("")
     return "\n".join(lines)
+
+
+def matrix_plot_name(matrix: Matrix) -> str:
+    return f"matrix_{matrix.slug}.png"
+
+
+def _cell(cstats: dict, matrix: Matrix, row: str, backend: str, rand: str) -> tuple[float, str, dict | None]:
+    """A matrix cell's success: its mean over seeds, its text, and its conditions.csv row."""
+    stat = cstats.get((matrix.cells[(row, backend, rand)], matrix.scene_set, "policy", "policy", "success"))
+    if stat is None or math.isnan(_number(stat["mean"])):
+        return math.nan, "—", None
+    mean = _number(stat["mean"])
+    if int(stat["n"]) == 1:
+        return mean, f"{mean:.3f} (1 seed)", stat
+    return mean, f"{mean:.3f} [{_number(stat['ci_low']):.3f}, {_number(stat['ci_high']):.3f}]", stat
+
+
+def matrix_lines(plan: Plan, matrix: Matrix, cstats: dict, data_dir: str) -> list[str]:
+    """A transfer matrix on the page: one success table per randomization and what each 3D-trained row
+    keeps of its own backend's success on the other 3D backends."""
+    seed, n = plan.scene_sets[matrix.scene_set]
+    caps = sorted({plan.conditions[c].n_scenes or n for c in matrix.cells.values()})
+    names = sorted(set(matrix.cells.values()))
+    lines = [
+        f"## Transfer matrix: {matrix.title}",
+        "",
+        f"Command: `footsim-reproduce only=matrix` (this matrix's cells: `{','.join(names)}`).",
+        "",
+        f"Success on the {matrix.scene_set} scenes (seed {seed}; {' or '.join(map(str, caps))} scenes per cell, "
+        f"at most {n}): mean over the row's training seeds [95 % bootstrap interval]; a cell of one seed says so. "
+        f"Rows: the policies of a trained condition (its training command is in the tables above); columns: the "
+        f"backend they are evaluated on. Heatmap: `{data_dir}/{matrix_plot_name(matrix)}`.",
+        "",
+    ]
+    for rand in matrix.randomizations:
+        lines += [f"Evaluated with randomization={rand}:", ""]
+        lines += ["| Trained (condition, seeds) | " + " | ".join(matrix.backends) + " |"]
+        lines += ["|---|" + "---|" * len(matrix.backends)]
+        for label, source in matrix.rows.items():
+            texts = [_cell(cstats, matrix, label, b, rand)[1] for b in matrix.backends]
+            seeds = len(plan.conditions[source].seeds)
+            lines.append(f"| {label} ({source}, {seeds} seed{'s' if seeds > 1 else ''}) | " + " | ".join(texts) + " |")
+        lines.append("")
+    retained = []
+    for label, source in matrix.rows.items():
+        row = plan.conditions[source]
+        if row.backend == "pymunk" or row.backend not in matrix.backends:
+            continue
+        for rand in matrix.randomizations:
+            own, own_text, _ = _cell(cstats, matrix, label, row.backend, rand)
+            for other in matrix.backends:
+                if other in ("pymunk", row.backend):
+                    continue
+                value = _cell(cstats, matrix, label, other, rand)[0]
+                ratio = value / own if own > 0 and not math.isnan(value) else math.nan
+                if row.randomization == "none":
+                    verdict = "—"
+                elif math.isnan(ratio):
+                    verdict = "no data yet"
+                else:
+                    verdict = "met" if ratio >= RETENTION_TARGET else "not met"
+                ratio_text = "—" if math.isnan(ratio) else f"{ratio:.2f}"
+                retained.append(f"| {label} | {rand} | {own_text} | {other} | {ratio_text} | {verdict} |")
+    if retained:
+        lines += [
+            f"What a 3D-trained row keeps on the other 3D backends (success there ÷ success on its own backend, "
+            f"under the same randomization; target for a row trained with randomization: ≥ {RETENTION_TARGET:g}):",
+            "",
+            "| Trained | Randomization | Success on its own backend | On | Kept | Target |",
+            "|---|---|---|---|---|---|",
+            *retained,
+            "",
+        ]
+    return lines
+
+
+def plot_matrix(path: Path, matrix: Matrix, cstats: dict) -> None:
+    """A matrix's heatmaps (one per randomization): success mean, with its interval or "1 seed" in each cell."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = list(matrix.rows)
+    fig, axes = plt.subplots(
+        1,
+        len(matrix.randomizations),
+        figsize=(1.9 * len(matrix.backends) * len(matrix.randomizations) + 2.5, 0.75 * len(rows) + 1.6),
+        squeeze=False,
+    )
+    for ax, rand in zip(axes[0], matrix.randomizations):
+        values = np.full((len(rows), len(matrix.backends)), np.nan)
+        for i, label in enumerate(rows):
+            for j, backend in enumerate(matrix.backends):
+                mean, _, stat = _cell(cstats, matrix, label, backend, rand)
+                values[i, j] = mean
+                if stat is None:
+                    text = "—"
+                elif int(stat["n"]) == 1:
+                    text = f"{mean:.2f}\n1 seed"
+                else:
+                    text = f"{mean:.2f}\n[{_number(stat['ci_low']):.2f}, {_number(stat['ci_high']):.2f}]"
+                dark = not math.isnan(mean) and mean < 0.6
+                ax.text(j, i, text, ha="center", va="center", fontsize=7, color="white" if dark else "black")
+        image = ax.imshow(values, vmin=0.0, vmax=1.0, cmap="viridis", aspect="auto")
+        ax.set_xticks(range(len(matrix.backends)), matrix.backends, fontsize=8)
+        ax.set_yticks(range(len(rows)), rows, fontsize=8)
+        ax.set_xlabel("evaluated on")
+        ax.set_title(f"randomization={rand}", fontsize=9)
+    axes[0][0].set_ylabel("trained")
+    fig.colorbar(image, ax=list(axes[0]), label=f"success ({matrix.scene_set} scenes)", shrink=0.8)
+    fig.suptitle(f"Transfer matrix: {matrix.title}", fontsize=10)
+    atomic_save(lambda tmp: fig.savefig(tmp, dpi=110, format="png", bbox_inches="tight"), path, ".png")
+    plt.close(fig)
 
 
 def _iqm(cstats: dict, key: tuple, metric: str) -> str:
@@ -679,7 +936,8 @@ def plot_success_by_seed(path: Path, plan: Plan, runs: list[dict], cstats_rows: 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    conds = [c for c in plan.conditions if any(r["condition"] == c for r in runs)]
+    tabled = [c for table in plan.tables for c in table["conditions"]]
+    conds = [c for c in dict.fromkeys(tabled) if any(r["condition"] == c for r in runs)]
     fig, ax = plt.subplots(figsize=(max(6, 1.2 * len(conds) + 2), 4))
     stats = {
         (r["condition"], r["kind"], r["name"]): r
@@ -781,7 +1039,14 @@ def path_jobs(plan: Plan, spec: dict, root: Path) -> list[Job]:
     baselines the plan runs under that condition, each as the evaluation runs it."""
     cond = plan.conditions[spec["condition"]]
     seed, n = plan.scene_sets[spec["set"]]
-    common = dict(backend=cond.backend, task=cond.task, noise=cond.noise, scenes_seed=seed, n_scenes=n)
+    common = dict(
+        backend=cond.backend,
+        task=cond.task,
+        noise=cond.noise,
+        randomization=cond.randomization,
+        scenes_seed=seed,
+        n_scenes=n,
+    )
     jobs = []
     seeds = plan.seeds(cond)
     if seeds and plan.entry(cond, seeds[0]) in set(zoo.names(root)):
@@ -880,6 +1145,9 @@ def reproduce(
         plot_success_by_seed(out / "success_by_seed.png", plan, runs, cond_rows)
         plot_learning_curves(out / "learning_curves.png", plan, root)
         plot_scene_paths(plan, root, out)
+        cstats = {(r["condition"], r["scene_set"], r["kind"], r["name"], r["metric"]): r for r in cond_rows}
+        for matrix in plan.matrices:
+            plot_matrix(out / matrix_plot_name(matrix), matrix, cstats)
     data_dir = os.path.relpath(out)  # as the reader types it from where the command ran (the repository top)
     atomic_write_text(page, render_page(plan, runs, cond_rows, root, data_dir))
     episodes = sum(j.n_scenes for j in jobs)
