@@ -418,3 +418,40 @@ def test_a_job_runs_under_its_randomization(small_study):
             env, _ = rp.job_env_and_controller(job, root / "zoo")
             assert env.config["randomization"]["name"] == rand, (kind, rand)
             env.close()
+
+
+def test_steps_to_reach_reads_the_zoo_learning_curves(tmp_path):
+    """The fine-tune's mean training curve first reaches the from-scratch run's final success rate at
+    a hand-interpolated step."""
+    body = (
+        BASE
+        + """
+  scratch:
+    backend: pymunk
+    task: nav
+    seeds: [0]
+    train: []
+thesis:
+  - question: q
+    thesis: t
+    figures: [{label: steps, condition: nav, reaches: scratch}]
+"""
+    )
+    plan = rp.load_plan(_plan(tmp_path, body))
+    root = tmp_path / "zoo"
+    curves = {  # step: success rate
+        "nav_s0": [(0, 0.0), (100, 0.4), (200, 0.8)],
+        "nav_s1": [(0, 0.2), (100, 0.6), (200, 1.0)],
+        "scratch_s0": [(0, 0.0), (300, 0.5)],
+    }
+    for name, points in curves.items():
+        (root / name).mkdir(parents=True)
+        lines = ["step,success_rate"] + [f"{s},{r}" for s, r in points]
+        (root / name / zoo.CURVE_FILE).write_text("\n".join(lines) + "\n")
+    (root / "index.json").write_text(json.dumps({"format": 1, "entries": {n: {} for n in curves}}))
+    # mean curve 0.1 + 0.004 * step reaches 0.5 at step 100 (on the 100-point grid over 0..200: 101.01)
+    value, text = rp.figure_value({}, plan.thesis[0]["figures"][0], plan, root)
+    assert value == pytest.approx(200 * 50 / 99)
+    assert text == f"nav reaches scratch's final training success (0.50 at 300 steps) after {200 * 50 / 99:.0f} steps"
+    with pytest.raises(rp.PlanError, match=r"thesis\[0\]\.figures\[0\]\.reaches: no condition 'nope'"):
+        rp.load_plan(_plan(tmp_path, body.replace("reaches: scratch", "reaches: nope")))

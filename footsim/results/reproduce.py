@@ -241,10 +241,15 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
     for i, row in enumerate(thesis):
         for j, fig in enumerate(need(row, "figures", list, f"thesis[{i}].")):
             where = f"thesis[{i}].figures[{j}]."
-            for key in ("condition", "minus"):
+            for key in ("condition", "minus", "reaches"):
                 if fig.get(key) is not None and fig[key] not in conditions:
                     raise PlanError(f"{path}: {where}{key}: no condition {fig[key]!r}")
-            if need(fig, "metric", str, where) not in METRICS:
+            for key in ("condition", "reaches"):
+                if fig.get("reaches") is not None and conditions[fig[key]].policies:
+                    raise PlanError(
+                        f"{path}: {where}{key}: {fig[key]!r} is not a trained condition (no learning curve)"
+                    )
+            if fig.get("reaches") is None and need(fig, "metric", str, where) not in METRICS:
                 raise PlanError(f"{path}: {where}metric: {fig['metric']!r} is not one of {list(METRICS)}")
             if fig.get("target") is not None:
                 parse_target(fig["target"], f"{path}: {where}target")
@@ -739,7 +744,7 @@ def render_page(plan: Plan, runs: list[dict], cond_rows: list[dict], root: Path,
         lines.append("")
     for matrix in plan.matrices:
         lines += matrix_lines(plan, matrix, cstats, data_dir)
-    lines += thesis_table(plan, cstats)
+    lines += thesis_table(plan, cstats, root)
     lines += [
         "## Plots",
         "",
@@ -884,8 +889,33 @@ def _mean(cstats: dict, condition: str, metric: str, kind: str = "policy", name:
     return math.nan if row is None else _number(row["mean"])
 
 
-def figure_value(cstats: dict, fig: dict) -> tuple[float, str]:
-    """A thesis-table figure's value (mean over seeds on the standard set) and its text."""
+def steps_to_reach(plan: Plan, condition: str, reference: str, root: Path) -> tuple[float, str]:
+    """The training steps after which ``condition``'s mean training success rate (over its seeds' zoo
+    learning curves) first reaches ``reference``'s final one, and its text; NaN when either has no
+    curve or it is never reached."""
+    ours, theirs = (
+        mean_curve(plan, plan.conditions[condition], root),
+        mean_curve(plan, plan.conditions[reference], root),
+    )
+    if ours is None or theirs is None:
+        return math.nan, "no learning curve yet"
+    final = float(theirs[1][:, -1].mean())
+    about = f"{reference}'s final training success ({final:.2f} at {theirs[0][-1]:.0f} steps)"
+    mean = ours[1].mean(axis=0)
+    reached = np.flatnonzero(mean >= final)
+    if not len(reached):
+        return math.nan, f"{condition} does not reach {about} in {ours[0][-1]:.0f} steps"
+    step = float(ours[0][reached[0]])
+    return step, f"{condition} reaches {about} after {step:.0f} steps"
+
+
+def figure_value(cstats: dict, fig: dict, plan: Plan | None = None, root: Path | None = None) -> tuple[float, str]:
+    """A thesis-table figure's value (mean over seeds on the standard set, or with ``reaches: C`` the
+    training steps after which the condition's training success first reaches C's final one) and its text."""
+    if fig.get("reaches"):
+        if plan is None or root is None:
+            raise ValueError("a reaches: figure needs the plan and the zoo")
+        return steps_to_reach(plan, fig["condition"], fig["reaches"], root)
     value = _mean(cstats, fig["condition"], fig["metric"])
     text = _stat(cstats, (fig["condition"], "standard", "policy", "policy"), fig["metric"])
     if fig.get("ratio_to"):
@@ -899,7 +929,7 @@ def figure_value(cstats: dict, fig: dict) -> tuple[float, str]:
     return value, text
 
 
-def thesis_table(plan: Plan, cstats: dict) -> list[str]:
+def thesis_table(plan: Plan, cstats: dict, root: Path) -> list[str]:
     if not plan.thesis:
         return []
     lines = [
@@ -913,7 +943,7 @@ def thesis_table(plan: Plan, cstats: dict) -> list[str]:
     for row in plan.thesis:
         figures, targets = [], []
         for fig in row["figures"]:
-            value, text = figure_value(cstats, fig)
+            value, text = figure_value(cstats, fig, plan, root)
             figures.append(f"{fig['label']} {text}")
             if fig.get("target"):
                 op, limit = parse_target(fig["target"])
@@ -985,6 +1015,26 @@ def plot_success_by_seed(path: Path, plan: Plan, runs: list[dict], cstats_rows: 
     plt.close(fig)
 
 
+def mean_curve(plan: Plan, cond: Condition, root: Path) -> tuple[np.ndarray, np.ndarray] | None:
+    """A trained condition's zoo learning curves (training success rate over the run's own steps) on a
+    common grid of 100 steps over the range all seeds cover: ``(grid, values[seed, step])``; None
+    when no seed's entry has a curve."""
+    available = set(zoo.names(root))
+    curves = []
+    for s in cond.seeds:
+        name = plan.entry(cond, s)
+        file = root / name / zoo.CURVE_FILE
+        if name in available and file.is_file():
+            rows = read_csv(file)
+            curves.append(
+                (np.array([float(r["step"]) for r in rows]), np.array([float(r["success_rate"]) for r in rows]))
+            )
+    if not curves:
+        return None
+    grid = np.linspace(max(c[0][0] for c in curves), min(c[0][-1] for c in curves), 100)
+    return grid, np.array([np.interp(grid, x, y) for x, y in curves])
+
+
 def plot_learning_curves(path: Path, plan: Plan, root: Path) -> bool:
     """Training success rate over steps per trained condition (zoo ``learning_curve.csv``): the mean
     over seeds and the pointwise 95 % bootstrap band.  False when no entry has a curve."""
@@ -997,25 +1047,14 @@ def plot_learning_curves(path: Path, plan: Plan, root: Path) -> bool:
 
     fig, ax = plt.subplots(figsize=(7, 4))
     drawn = False
-    available = set(zoo.names(root))
     for i, cond in enumerate(c for c in plan.conditions.values() if not c.policies):
-        curves = []
-        for s in cond.seeds:
-            name = plan.entry(cond, s)
-            file = root / name / zoo.CURVE_FILE
-            if name in available and file.is_file():
-                rows = read_csv(file)
-                curves.append(
-                    (np.array([float(r["step"]) for r in rows]), np.array([float(r["success_rate"]) for r in rows]))
-                )
-        if not curves:
+        curve = mean_curve(plan, cond, root)
+        if curve is None:
             continue
-        end = min(c[0][-1] for c in curves)
-        grid = np.linspace(max(c[0][0] for c in curves), end, 100)
-        values = np.array([np.interp(grid, x, y) for x, y in curves])
+        grid, values = curve
         mean = values.mean(axis=0)
-        ax.plot(grid, mean, color=f"C{i}", label=f"{cond.name} ({len(curves)} seeds)")
-        if len(curves) > 1:
+        ax.plot(grid, mean, color=f"C{i}", label=f"{cond.name} ({len(values)} seeds)")
+        if len(values) > 1:
             bands = np.array([bootstrap_interval(values[:, k], n_resamples=2000) for k in range(len(grid))])
             ax.fill_between(grid, bands[:, 0], bands[:, 1], color=f"C{i}", alpha=0.2)
         drawn = True
