@@ -70,6 +70,7 @@ conditions:
         (lambda t: t.replace("n_scenes: 4", "n_scenes: 0"), r"scene_sets\.heldout\.n_scenes must be > 0"),
         (lambda t: t + "    n_scenes: all\n", r"conditions\.nav\.n_scenes must be a positive integer"),
         (lambda t: t + "baselines: {velocity: [obst]}\n", r"baselines\.velocity: no condition 'obst'"),
+        (lambda t: t + "media: [{file: a.mp4, caption: c}]\n", r"media\[0\]\.command is missing"),
         (
             lambda t: t + "paths: [{condition: nav, set: standard, scenes: [6]}]\n",
             r"paths\[0\]\.scenes: scene indices 0\.\.5 of set 'standard', got \[6\]",

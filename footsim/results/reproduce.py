@@ -128,6 +128,7 @@ class Plan:
     thesis: tuple[dict, ...]
     paths: tuple[dict, ...] = ()  # per-scene path plots: {condition, set, scenes}
     matrices: tuple[Matrix, ...] = ()  # transfer matrices; their cells are conditions too
+    media: tuple[dict, ...] = ()  # pictures and clips made by other commands: {file, caption, command}
     raw: dict = field(repr=False, default_factory=dict)
 
     def entry(self, condition: Condition, seed: int) -> str:
@@ -267,6 +268,10 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
                 f"{path}: {where}scenes: scene indices 0..{n_set - 1} of set {spec_['set']!r}, got {scenes!r}"
             )
     matrices = tuple(_matrix(path, i, spec_, conditions, sets) for i, spec_ in enumerate(raw.get("matrices") or ()))
+    media = tuple(raw.get("media") or ())
+    for i, spec_ in enumerate(media):
+        for key in ("file", "caption", "command"):
+            need(spec_, key, str, f"media[{i}].")
     zoo_name = str(raw.get("zoo_name", "{condition}_s{seed}"))
     return Plan(
         path=path,
@@ -280,6 +285,7 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
         thesis=thesis,
         paths=paths,
         matrices=matrices,
+        media=media,
         raw=raw,
     )
 
@@ -761,6 +767,7 @@ def render_page(plan: Plan, runs: list[dict], cond_rows: list[dict], root: Path,
             f"* {files}: the footsteps on scene(s) {', '.join(map(str, spec['scenes']))} of the {spec['set']} set, "
             f"{cond.title} ({shown}; each the episode the tables count)."
         )
+    lines += [f"* `{m['file']}`: {m['caption']} Command: `{m['command']}`." for m in plan.media]
     lines.append("")
     return "\n".join(lines)
 
