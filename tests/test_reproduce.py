@@ -37,6 +37,17 @@ def test_study_plan_v1_training_commands_compose_to_its_conditions():
     for controller in plan.baselines:
         fconf.compose("eval", [f"controller={controller}"])  # every baseline names a controller preset
     assert plan.entry(plan.conditions["2d_nav_on_mujoco"], 3) == "2d_nav_s3"  # evaluates 2d_nav's policies
+    # issue 26 item 3: trained on pymunk, MuJoCo and PyBullet (with and without randomization), evaluated
+    # with and without it, obstacle-free and with obstacles
+    assert {m.task for m in plan.matrices} == {"nav", "nav_obstacles"}
+    for matrix in plan.matrices:
+        trained = [plan.conditions[c] for c in matrix.rows.values()]
+        assert {c.backend for c in trained} == {"pymunk", "mujoco", "pybullet"} <= set(matrix.backends)
+        assert set(matrix.randomizations) == {"none", "default"} and all(c.task == matrix.task for c in trained)
+    randomized = [
+        plan.conditions[c] for c in plan.matrices[0].rows.values() if plan.conditions[c].randomization != "none"
+    ]
+    assert {c.backend for c in randomized} == {"mujoco", "pybullet"}
 
 
 def _plan(tmp_path: Path, body: str) -> Path:
