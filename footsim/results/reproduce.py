@@ -876,7 +876,7 @@ def plot_matrix(path: Path, matrix: Matrix, cstats: dict) -> None:
                 ax.text(j, i, text, ha="center", va="center", fontsize=7, color="white" if dark else "black")
         image = ax.imshow(values, vmin=0.0, vmax=1.0, cmap="viridis", aspect="auto")
         ax.set_xticks(range(len(matrix.backends)), matrix.backends, fontsize=8)
-        ax.set_yticks(range(len(rows)), rows, fontsize=8)
+        ax.set_yticks(range(len(rows)), rows if ax is axes[0][0] else [], fontsize=8)
         ax.set_xlabel("evaluated on")
         ax.set_title(f"randomization={rand}", fontsize=9)
     axes[0][0].set_ylabel("trained")
