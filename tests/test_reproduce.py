@@ -467,3 +467,16 @@ thesis:
     assert text == f"nav reaches scratch's final training success (0.50 at 300 steps) after {200 * 50 / 99:.0f} steps"
     with pytest.raises(rp.PlanError, match=r"thesis\[0\]\.figures\[0\]\.reaches: no condition 'nope'"):
         rp.load_plan(_plan(tmp_path, body.replace("reaches: scratch", "reaches: nope")))
+
+
+def test_rows_the_plan_no_longer_has_are_dropped(tmp_path):
+    plan = rp.load_plan(_plan(tmp_path, BASE + MATRIX))
+    rows = [
+        {"condition": "nav", "scene_set": "heldout", "kind": "policy", "name": "nav_s0"},
+        {"condition": "obst_on_mujoco_dr_default", "scene_set": "standard", "kind": "policy", "name": "obst_s0"},
+        {"condition": "obst_on_mujoco_dr_default", "scene_set": "heldout", "kind": "policy", "name": "obst_s0"},
+        {"condition": "gone", "scene_set": "standard", "kind": "baseline", "name": "velocity"},
+    ]
+    kept, dropped = rp.planned_rows(plan, rows)
+    assert kept == rows[:2]  # a matrix cell is evaluated on its matrix's sets only
+    assert dropped == ["obst_on_mujoco_dr_default/heldout/policy/obst_s0", "gone/standard/baseline/velocity"]

@@ -608,6 +608,18 @@ def merge_rows(old: list[dict], new: list[dict], key: Sequence[str]) -> list[dic
     return [merged[k] for k in sorted(merged)]
 
 
+def planned_rows(plan: Plan, runs: list[dict]) -> tuple[list[dict], list[str]]:
+    """The rows of ``runs`` the plan still has (its conditions, on their scene sets), and the keys of the others."""
+    kept, dropped = [], []
+    for row in runs:
+        cond = plan.conditions.get(row["condition"])
+        if cond is None or row["scene_set"] not in (cond.sets or plan.scene_sets):
+            dropped.append("/".join(str(row[k]) for k in KEY))
+        else:
+            kept.append(row)
+    return kept, dropped
+
+
 def differences(old: list[dict], new: list[dict], key: Sequence[str], values: Sequence[str]) -> list[str]:
     """Every cell of ``new`` that differs from ``old`` (rows matched by ``key``), in words."""
     before = {tuple(r[k] for k in key): r for r in old}
@@ -1178,7 +1190,9 @@ def reproduce(
     new_runs = [run_row(job, results[job.key]) for job in jobs]
 
     changed = differences(old_runs, new_runs, KEY, ("n_scenes", *METRICS))
-    runs = merge_rows(old_runs, new_runs, KEY)
+    runs, dropped = planned_rows(plan, merge_rows(old_runs, new_runs, KEY))
+    if dropped:
+        print(f"dropped {len(dropped)} row(s) of the data files the plan no longer has: {', '.join(dropped)}")
     old_conds = read_csv(out / CONDITIONS_FILE)
     cond_rows = condition_rows(runs)
     changed += differences(old_conds, cond_rows, (*KEY, "metric"), ("mean", "ci_low", "ci_high", "iqm"))
