@@ -418,6 +418,18 @@ class Job:
         return (self.condition, self.scene_set, self.kind, self.name)
 
 
+def _evaluated_as(cond: Condition, scenes_seed: int, n_scenes: int) -> dict[str, Any]:
+    """The fields a :class:`Job` of ``cond`` takes from it: what it is evaluated under, on which scenes."""
+    return dict(
+        backend=cond.backend,
+        task=cond.task,
+        noise=cond.noise,
+        randomization=cond.randomization,
+        scenes_seed=scenes_seed,
+        n_scenes=n_scenes,
+    )
+
+
 def plan_jobs(
     plan: Plan, conditions: Sequence[Condition], root: Path, n_scenes: int | None, sets: Sequence[str], baselines: bool
 ) -> tuple[list[Job], list[str]]:
@@ -433,25 +445,17 @@ def plan_jobs(
             if cond.sets is not None and set_name not in cond.sets:
                 continue
             seed, n = plan.scene_sets[set_name]
-            n = min([n, *(cap for cap in (cond.n_scenes, n_scenes) if cap is not None)])
-            common = dict(
-                backend=cond.backend,
-                task=cond.task,
-                noise=cond.noise,
-                randomization=cond.randomization,
-                scenes_seed=seed,
-                n_scenes=n,
-            )
+            common = _evaluated_as(cond, seed, min([n, *(cap for cap in (cond.n_scenes, n_scenes) if cap is not None)]))
             for s in plan.seeds(cond):
                 entry = plan.entry(cond, s)
                 if entry not in available:
                     missing.append(entry)
                     continue
-                jobs.append(Job(cond.name, set_name, "policy", entry, s, **common))  # type: ignore[arg-type]
+                jobs.append(Job(cond.name, set_name, "policy", entry, s, **common))
             if baselines:
                 for controller, conds in plan.baselines.items():
                     if cond.name in conds:
-                        jobs.append(Job(cond.name, set_name, "baseline", controller, None, **common))  # type: ignore[arg-type]
+                        jobs.append(Job(cond.name, set_name, "baseline", controller, None, **common))
     return jobs, sorted(set(missing))
 
 
@@ -1096,22 +1100,14 @@ def path_jobs(plan: Plan, spec: dict, root: Path) -> list[Job]:
     """What a path plot shows: the condition's first zoo policy (if the zoo has it) and the
     baselines the plan runs under that condition, each as the evaluation runs it."""
     cond = plan.conditions[spec["condition"]]
-    seed, n = plan.scene_sets[spec["set"]]
-    common = dict(
-        backend=cond.backend,
-        task=cond.task,
-        noise=cond.noise,
-        randomization=cond.randomization,
-        scenes_seed=seed,
-        n_scenes=n,
-    )
+    common = _evaluated_as(cond, *plan.scene_sets[spec["set"]])
     jobs = []
     seeds = plan.seeds(cond)
     if seeds and plan.entry(cond, seeds[0]) in set(zoo.names(root)):
-        jobs.append(Job(cond.name, spec["set"], "policy", plan.entry(cond, seeds[0]), seeds[0], **common))  # type: ignore[arg-type]
+        jobs.append(Job(cond.name, spec["set"], "policy", plan.entry(cond, seeds[0]), seeds[0], **common))
     for controller, conds in plan.baselines.items():
         if cond.name in conds:
-            jobs.append(Job(cond.name, spec["set"], "baseline", controller, None, **common))  # type: ignore[arg-type]
+            jobs.append(Job(cond.name, spec["set"], "baseline", controller, None, **common))
     return jobs
 
 
