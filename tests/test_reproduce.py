@@ -322,13 +322,18 @@ matrices:
     randomization: [none, default]
     n_scenes: 3
     sets: [standard]
+    note: dm-control shares MuJoCo's column.
 """
 
 
 def test_matrix_cells_reuse_the_plans_conditions_and_derive_the_rest(tmp_path):
     plan = rp.load_plan(_plan(tmp_path, BASE + MATRIX))
     (matrix,) = plan.matrices
-    assert (matrix.slug, matrix.scene_set) == ("with_obstacles", "standard")
+    assert (matrix.slug, matrix.scene_set, matrix.note) == (
+        "with_obstacles",
+        "standard",
+        "dm-control shares MuJoCo's column.",
+    )
     assert matrix.cells == {
         ("2D", "pymunk", "none"): "obst",  # the trained condition itself
         ("2D", "pymunk", "default"): "obst_on_pymunk_dr_default",

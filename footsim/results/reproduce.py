@@ -109,6 +109,7 @@ class Matrix:
     randomizations: tuple[str, ...]
     cells: dict[tuple[str, str, str], str]
     scene_set: str  # the set its tables and heatmaps show
+    note: str = ""  # shown under its title
 
     @property
     def slug(self) -> str:
@@ -303,7 +304,7 @@ def _matrix(path: Path, i: int, spec: Any, conditions: dict[str, Condition], set
     where = f"{path}: matrices[{i}]."
     if not isinstance(spec, dict):
         raise PlanError(f"{where[:-1]} must be a mapping")
-    known = {"title", "task", "rows", "backends", "randomization", "n_scenes", "sets"}
+    known = {"title", "task", "rows", "backends", "randomization", "n_scenes", "sets", "note"}
     unknown = sorted(set(spec) - known)
     if unknown:
         raise PlanError(f"{where[:-1]}: unknown key(s) {unknown}; valid: {sorted(known)}")
@@ -363,6 +364,7 @@ def _matrix(path: Path, i: int, spec: Any, conditions: dict[str, Condition], set
         randomizations=tuple(map(str, randomizations)),
         cells=cells,
         scene_set=(cell_sets or tuple(sets))[0],
+        note=str(spec.get("note", "")),
     )
 
 
@@ -820,6 +822,8 @@ def matrix_lines(plan: Plan, matrix: Matrix, cstats: dict, data_dir: str) -> lis
         f"backend they are evaluated on. Heatmap: `{data_dir}/{matrix_plot_name(matrix)}`.",
         "",
     ]
+    if matrix.note:
+        lines += [matrix.note, ""]
     for rand in matrix.randomizations:
         lines += [f"Evaluated with randomization={rand}:", ""]
         lines += ["| Trained (condition, seeds) | " + " | ".join(matrix.backends) + " |"]
