@@ -197,15 +197,11 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
         where = f"conditions.{name}."
         if not isinstance(spec_, dict):
             raise PlanError(f"{path}: conditions.{name} must be a mapping")
-        unknown = sorted(set(spec_) - known)
-        if unknown:
-            raise PlanError(f"{path}: {where[:-1]}: unknown key(s) {unknown}; valid: {sorted(known)}")
+        _known_keys(spec_, known, f"{path}: {where[:-1]}")
         seeds = tuple(spec_.get("seeds") or ())
         if any(not isinstance(s, int) or isinstance(s, bool) for s in seeds):
             raise PlanError(f"{path}: {where}seeds must be a list of integers, got {spec_.get('seeds')!r}")
-        cap = spec_.get("n_scenes")
-        if cap is not None and (not isinstance(cap, int) or isinstance(cap, bool) or cap <= 0):
-            raise PlanError(f"{path}: {where}n_scenes must be a positive integer, got {cap!r}")
+        cap = _scene_cap(spec_.get("n_scenes"), f"{path}: {where}n_scenes")
         cond_sets = _set_names(spec_.get("sets"), sets, f"{path}: {where}sets")
         conditions[name] = Condition(
             name=name,
@@ -246,11 +242,12 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
             for key in ("condition", "minus", "reaches"):
                 if fig.get(key) is not None and fig[key] not in conditions:
                     raise PlanError(f"{path}: {where}{key}: no condition {fig[key]!r}")
-            for key in ("condition", "reaches"):
-                if fig.get("reaches") is not None and conditions[fig[key]].policies:
-                    raise PlanError(
-                        f"{path}: {where}{key}: {fig[key]!r} is not a trained condition (no learning curve)"
-                    )
+            if fig.get("reaches") is not None:
+                for key in ("condition", "reaches"):
+                    if conditions[fig[key]].policies:
+                        raise PlanError(
+                            f"{path}: {where}{key}: {fig[key]!r} is not a trained condition (no learning curve)"
+                        )
             if fig.get("reaches") is None and need(fig, "metric", str, where) not in METRICS:
                 raise PlanError(f"{path}: {where}metric: {fig['metric']!r} is not one of {list(METRICS)}")
             if fig.get("target") is not None:
@@ -291,6 +288,18 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
     )
 
 
+def _known_keys(spec: dict, known: set[str], where: str) -> None:
+    unknown = sorted(set(spec) - known)
+    if unknown:
+        raise PlanError(f"{where}: unknown key(s) {unknown}; valid: {sorted(known)}")
+
+
+def _scene_cap(value: Any, where: str) -> int | None:
+    if value is not None and (not isinstance(value, int) or isinstance(value, bool) or value <= 0):
+        raise PlanError(f"{where} must be a positive integer, got {value!r}")
+    return value
+
+
 def _set_names(value: Any, sets: dict, where: str) -> tuple[str, ...] | None:
     if value is None:
         return None
@@ -304,10 +313,7 @@ def _matrix(path: Path, i: int, spec: Any, conditions: dict[str, Condition], set
     where = f"{path}: matrices[{i}]."
     if not isinstance(spec, dict):
         raise PlanError(f"{where[:-1]} must be a mapping")
-    known = {"title", "task", "rows", "backends", "randomization", "n_scenes", "sets", "note"}
-    unknown = sorted(set(spec) - known)
-    if unknown:
-        raise PlanError(f"{where[:-1]}: unknown key(s) {unknown}; valid: {sorted(known)}")
+    _known_keys(spec, {"title", "task", "rows", "backends", "randomization", "n_scenes", "sets", "note"}, where[:-1])
     for key in ("task", "rows", "backends"):
         if key not in spec:
             raise PlanError(f"{where}{key} is missing")
@@ -323,9 +329,7 @@ def _matrix(path: Path, i: int, spec: Any, conditions: dict[str, Condition], set
     randomizations = spec.get("randomization", ["none"])
     if not isinstance(randomizations, list) or not randomizations:
         raise PlanError(f"{where}randomization must be a list of conf/randomization presets, got {randomizations!r}")
-    cap = spec.get("n_scenes")
-    if cap is not None and (not isinstance(cap, int) or isinstance(cap, bool) or cap <= 0):
-        raise PlanError(f"{where}n_scenes must be a positive integer, got {cap!r}")
+    cap = _scene_cap(spec.get("n_scenes"), f"{where}n_scenes")
     cell_sets = _set_names(spec.get("sets"), sets, f"{where}sets")
     task = str(spec["task"])
     cells = {}
@@ -665,6 +669,11 @@ def condition_rows(runs: list[dict]) -> list[dict]:
 
 
 # -- the page -----------------------------------------------------------------------------------
+def index_stats(cond_rows: list[dict]) -> dict[tuple, dict]:
+    """conditions.csv's rows by (condition, scene set, kind, name, metric)."""
+    return {(r["condition"], r["scene_set"], r["kind"], r["name"], r["metric"]): r for r in cond_rows}
+
+
 def _stat(cstats: dict, key: tuple, metric: str, digits: int = 3, interval: bool = True) -> str:
     row = cstats.get((*key, metric))
     if row is None or math.isnan(_number(row["mean"])):
@@ -702,7 +711,7 @@ def _zoo_line(plan: Plan, cond: Condition, runs: list[dict], root: Path) -> str:
 
 
 def render_page(plan: Plan, runs: list[dict], cond_rows: list[dict], root: Path, data_dir: str) -> str:
-    cstats = {(r["condition"], r["scene_set"], r["kind"], r["name"], r["metric"]): r for r in cond_rows}
+    cstats = index_stats(cond_rows)
     seeds_of = {}
     for r in cond_rows:
         if r["metric"] == "success":
@@ -794,15 +803,19 @@ def matrix_plot_name(matrix: Matrix) -> str:
     return f"matrix_{matrix.slug}.png"
 
 
-def _cell(cstats: dict, matrix: Matrix, row: str, backend: str, rand: str) -> tuple[float, str, dict | None]:
-    """A matrix cell's success: its mean over seeds, its text, and its conditions.csv row."""
+def _cell(
+    cstats: dict, matrix: Matrix, row: str, backend: str, rand: str, digits: int = 3, sep: str = " "
+) -> tuple[float, str]:
+    """A matrix cell's success: its mean over seeds and its text (the mean, then after ``sep`` its
+    interval, or "1 seed" for a one-seed cell)."""
     stat = cstats.get((matrix.cells[(row, backend, rand)], matrix.scene_set, "policy", "policy", "success"))
     if stat is None or math.isnan(_number(stat["mean"])):
-        return math.nan, "—", None
+        return math.nan, "—"
     mean = _number(stat["mean"])
     if int(stat["n"]) == 1:
-        return mean, f"{mean:.3f} (1 seed)", stat
-    return mean, f"{mean:.3f} [{_number(stat['ci_low']):.3f}, {_number(stat['ci_high']):.3f}]", stat
+        return mean, f"{mean:.{digits}f}{sep}(1 seed)"
+    low, high = _number(stat["ci_low"]), _number(stat["ci_high"])
+    return mean, f"{mean:.{digits}f}{sep}[{low:.{digits}f}, {high:.{digits}f}]"
 
 
 def matrix_lines(plan: Plan, matrix: Matrix, cstats: dict, data_dir: str) -> list[str]:
@@ -839,7 +852,7 @@ def matrix_lines(plan: Plan, matrix: Matrix, cstats: dict, data_dir: str) -> lis
         if row.backend == "pymunk" or row.backend not in matrix.backends:
             continue
         for rand in matrix.randomizations:
-            own, own_text, _ = _cell(cstats, matrix, label, row.backend, rand)
+            own, own_text = _cell(cstats, matrix, label, row.backend, rand)
             for other in matrix.backends:
                 if other in ("pymunk", row.backend):
                     continue
@@ -884,14 +897,8 @@ def plot_matrix(path: Path, matrix: Matrix, cstats: dict) -> None:
         values = np.full((len(rows), len(matrix.backends)), np.nan)
         for i, label in enumerate(rows):
             for j, backend in enumerate(matrix.backends):
-                mean, _, stat = _cell(cstats, matrix, label, backend, rand)
+                mean, text = _cell(cstats, matrix, label, backend, rand, digits=2, sep="\n")
                 values[i, j] = mean
-                if stat is None:
-                    text = "—"
-                elif int(stat["n"]) == 1:
-                    text = f"{mean:.2f}\n1 seed"
-                else:
-                    text = f"{mean:.2f}\n[{_number(stat['ci_low']):.2f}, {_number(stat['ci_high']):.2f}]"
                 dark = not math.isnan(mean) and mean < 0.6
                 ax.text(j, i, text, ha="center", va="center", fontsize=7, color="white" if dark else "black")
         image = ax.imshow(values, vmin=0.0, vmax=1.0, cmap="viridis", aspect="auto")
@@ -1205,7 +1212,7 @@ def reproduce(
         plot_success_by_seed(out / "success_by_seed.png", plan, runs, cond_rows)
         plot_learning_curves(out / "learning_curves.png", plan, root)
         plot_scene_paths(plan, root, out)
-        cstats = {(r["condition"], r["scene_set"], r["kind"], r["name"], r["metric"]): r for r in cond_rows}
+        cstats = index_stats(cond_rows)
         for matrix in plan.matrices:
             plot_matrix(out / matrix_plot_name(matrix), matrix, cstats)
     data_dir = os.path.relpath(out)  # as the reader types it from where the command ran (the repository top)
