@@ -4,6 +4,7 @@ end-to-end reproduction on a small plan and zoo checked against footsim-eval and
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import math
 import os
@@ -78,6 +79,14 @@ conditions:
         ),
         (lambda t: t + "    parent: nope\n", r"conditions\.nav\.parent: no condition 'nope'"),
         (lambda t: t + "    walk: fast\n", r"conditions\.nav: unknown key\(s\) \['walk'\]"),
+        (
+            lambda t: t + "    split_scenes: true\n",
+            r"conditions\.nav\.split_scenes must be true or false, and true needs n_scenes",
+        ),
+        (
+            lambda t: t + "    split_scenes: true\n    n_scenes: 1\n",
+            r"conditions\.nav\.n_scenes: 1 scenes cannot be split over 2 seeds",
+        ),
         (lambda t: t.replace("n_scenes: 4", "n_scenes: 0"), r"scene_sets\.heldout\.n_scenes must be > 0"),
         (lambda t: t + "    n_scenes: all\n", r"conditions\.nav\.n_scenes must be a positive integer"),
         (lambda t: t + "baselines: {velocity: [obst]}\n", r"baselines\.velocity: no condition 'obst'"),
@@ -174,7 +183,7 @@ thesis:
 def test_reproduce_end_to_end(small_study, tmp_path, capsys):
     root, plan = small_study
     out, page = tmp_path / "results", tmp_path / "RESULTS.md"
-    args = [f"plan={plan}", f"zoo={root / 'zoo'}", f"out={out}", f"page={page}", "shard_size=4", "progress=false"]
+    args = [f"plan={plan}", f"zoo={root / 'zoo'}", f"out={out}", f"page={page}", "shard_size=1", "progress=false"]
     reproduce_main(args)
     assert "no data files before" in capsys.readouterr().out
     runs = _rows(out / "runs.csv")
@@ -243,6 +252,13 @@ def test_reproduce_end_to_end(small_study, tmp_path, capsys):
         assert (outcome, len(navs) - 1) == (record["outcome"], record["steps"]), job.name
         assert len(footsteps) == 2 + 2 * record["steps"]  # the standing feet, then two per double step
         env.close()
+
+    # a block of a set (a split matrix cell) runs the same episodes as the whole set does there
+    job = rp.Job("nav", "standard", "policy", "nav_s1", 1, "pymunk", "nav", "none", 20220101, 6)
+    whole = rp.evaluate_shard(job, 0, 6, str(root / "zoo"))
+    block = dataclasses.replace(job, first_scene=2, n_scenes=3)
+    assert rp.evaluate_shard(block, 0, 3, str(root / "zoo")) == whole[2:5]
+    assert [r["scene"] for r in whole[2:5]] == [2, 3, 4]
 
     # again, in two worker processes: the same cells (episode i keeps scene i and seed i in any shard)
     before = (out / "runs.csv").read_text()
@@ -348,12 +364,39 @@ def test_matrix_cells_reuse_the_plans_conditions_and_derive_the_rest(tmp_path):
         "default",
     )
     assert (derived.n_scenes, derived.sets) == (3, ("standard",))
+    assert derived.split_scenes and not plan.conditions["obst_on_mujoco"].split_scenes
     assert plan.conditions["obst_on_pymunk_dr_default"].n_scenes is None  # 2D cells take the whole set
     assert {c.name for c in rp.select(plan, "matrix")} == set(matrix.cells.values())
     # a derived cell is evaluated on its sets only, under its randomization, by the row's zoo entries
     (tmp_path / "zoo").mkdir()
     jobs, missing = rp.plan_jobs(plan, [derived], tmp_path / "zoo", None, ["standard", "heldout"], False)
     assert jobs == [] and missing == ["obst_s0"]
+
+
+def test_scene_blocks_split_a_cells_scenes_over_its_seeds():
+    assert rp.scene_blocks(50, 1) == [(0, 50)]
+    assert rp.scene_blocks(50, 5) == [(0, 10), (10, 10), (20, 10), (30, 10), (40, 10)]
+    assert rp.scene_blocks(50, 3) == [(0, 17), (17, 17), (34, 16)]
+    with pytest.raises(rp.PlanError, match="2 scenes cannot be split over 3 seeds"):
+        rp.scene_blocks(2, 3)
+
+
+def test_a_derived_3d_cell_spreads_its_scenes_over_the_rows_seeds(tmp_path, monkeypatch):
+    plan = rp.load_plan(_plan(tmp_path, BASE + MATRIX.replace("seeds: [0]", "seeds: [0, 1]")))
+    monkeypatch.setattr(rp.zoo, "names", lambda root: ["obst_s0", "obst_s1"])
+    monkeypatch.setattr(rp.zoo, "check_config", lambda name, root: None)
+    cells = [plan.conditions[c] for c in ("obst_on_mujoco_dr_default", "obst_on_mujoco")]
+    jobs, missing = rp.plan_jobs(plan, cells, tmp_path, None, ["standard"], False)
+    assert missing == []
+    assert [(j.condition, j.name, j.first_scene, j.n_scenes) for j in jobs] == [
+        ("obst_on_mujoco_dr_default", "obst_s0", 0, 2),  # 3 scenes in all: seed 0 takes scenes 0-1,
+        ("obst_on_mujoco_dr_default", "obst_s1", 2, 1),  # seed 1 scene 2
+        ("obst_on_mujoco", "obst_s0", 0, 6),  # the plan's own condition: the whole set for every seed
+        ("obst_on_mujoco", "obst_s1", 0, 6),
+    ]
+    text = _plan(tmp_path, BASE + MATRIX.replace("seeds: [0]", "seeds: [0, 1, 2, 3]"))
+    with pytest.raises(rp.PlanError, match=r"matrices\[0\]\.n_scenes: 3 scenes cannot be split over the 4 seeds"):
+        rp.load_plan(text)
 
 
 @pytest.mark.parametrize(

@@ -49,7 +49,7 @@ from footsim.utils import atomic_save, atomic_write_text
 DEFAULT_PLAN = "study/v1.yaml"  # under conf/
 #: Per evaluation: the identity of a row of runs.csv.
 KEY = ("condition", "scene_set", "kind", "name")
-INFO = ("seed", "backend", "task", "noise", "randomization", "scenes_seed", "n_scenes")
+INFO = ("seed", "backend", "task", "noise", "randomization", "scenes_seed", "first_scene", "n_scenes")
 METRICS = (
     "success",
     "timeout",
@@ -88,6 +88,10 @@ class Condition:
     n_scenes: int | None = None  # at most this many scenes of each set (3D evaluation is slow)
     randomization: str = "none"  # the domain randomization (conf/randomization) it is evaluated under
     sets: tuple[str, ...] | None = None  # the scene sets it is evaluated on (None: every set of the plan)
+    #: n_scenes is the condition's total, split over its seeds in consecutive blocks (seed k of the
+    #: plan's list takes the k-th block), so that a row of five seeds costs what a row of one does
+    #: and together they still cover n_scenes different scenes.
+    split_scenes: bool = False
 
     @property
     def source(self) -> str:
@@ -191,6 +195,7 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
         "n_scenes",
         "randomization",
         "sets",
+        "split_scenes",
     }
     conditions = {}
     for name, spec_ in need(raw, "conditions", dict, "").items():
@@ -203,6 +208,11 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
             raise PlanError(f"{path}: {where}seeds must be a list of integers, got {spec_.get('seeds')!r}")
         cap = _scene_cap(spec_.get("n_scenes"), f"{path}: {where}n_scenes")
         cond_sets = _set_names(spec_.get("sets"), sets, f"{path}: {where}sets")
+        split = spec_.get("split_scenes", False)
+        if not isinstance(split, bool) or (split and cap is None):
+            raise PlanError(
+                f"{path}: {where}split_scenes must be true or false, and true needs n_scenes, got {split!r}"
+            )
         conditions[name] = Condition(
             name=name,
             title=str(spec_.get("title", name)),
@@ -216,12 +226,18 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
             n_scenes=cap,
             randomization=str(spec_.get("randomization", "none")),
             sets=cond_sets,
+            split_scenes=split,
         )
     for cond in conditions.values():
         for key in ("parent", "policies"):
             ref = getattr(cond, key)
             if ref is not None and ref not in conditions:
                 raise PlanError(f"{path}: conditions.{cond.name}.{key}: no condition {ref!r}")
+        n_seeds = len(conditions[cond.source].seeds)
+        if cond.split_scenes and cond.n_scenes is not None and cond.n_scenes < n_seeds:
+            raise PlanError(
+                f"{path}: conditions.{cond.name}.n_scenes: {cond.n_scenes} scenes cannot be split over {n_seeds} seeds"
+            )
         if cond.policies is None and not cond.seeds:
             raise PlanError(f"{path}: conditions.{cond.name}: give seeds (and train) or policies")
     baselines = {}
@@ -335,6 +351,10 @@ def _matrix(path: Path, i: int, spec: Any, conditions: dict[str, Condition], set
     cells = {}
     for label, source in rows.items():
         row = conditions[source]
+        if cap is not None and cap < len(row.seeds):
+            raise PlanError(
+                f"{where}n_scenes: {cap} scenes cannot be split over the {len(row.seeds)} seeds of row {label}"
+            )
         for backend in backends:
             for rand in map(str, randomizations):
                 same = [
@@ -358,6 +378,7 @@ def _matrix(path: Path, i: int, spec: Any, conditions: dict[str, Condition], set
                     n_scenes=None if backend == "pymunk" else cap,  # 2D evaluation is cheap
                     randomization=rand,
                     sets=cell_sets,
+                    split_scenes=backend != "pymunk" and cap is not None,
                 )
                 cells[(label, backend, rand)] = name
     return Matrix(
@@ -418,10 +439,28 @@ class Job:
     scenes_seed: int
     n_scenes: int
     randomization: str = "none"
+    first_scene: int = 0  # the job evaluates scenes first_scene .. first_scene + n_scenes - 1 of its set
 
     @property
     def key(self) -> tuple[str, str, str, str]:
         return (self.condition, self.scene_set, self.kind, self.name)
+
+    @property
+    def episode_cost(self) -> float:
+        """Rough worker seconds of one episode (what order the shards are handed out in: the
+        longest first, so that no worker is left with a long one at the end)."""
+        per_backend = {"pybullet": 0.5, "mujoco": 0.15, "dm_control": 0.15}.get(self.backend, 0.005)
+        return per_backend * (1.5 if self.task == "nav_obstacles" else 1.0)
+
+
+def scene_blocks(n_scenes: int, n_seeds: int) -> list[tuple[int, int]]:
+    """``n_scenes`` consecutive scenes split into ``n_seeds`` blocks as even as can be: each block's
+    (first scene, number of scenes); the first ``n_scenes % n_seeds`` blocks take one scene more."""
+    if n_seeds > n_scenes:
+        raise PlanError(f"{n_scenes} scenes cannot be split over {n_seeds} seeds (at least one scene each)")
+    size, extra = divmod(n_scenes, n_seeds)
+    sizes = [size + (k < extra) for k in range(n_seeds)]
+    return [(sum(sizes[:k]), sizes[k]) for k in range(n_seeds)]
 
 
 def _evaluated_as(cond: Condition, scenes_seed: int, n_scenes: int) -> dict[str, Any]:
@@ -452,12 +491,19 @@ def plan_jobs(
                 continue
             seed, n = plan.scene_sets[set_name]
             common = _evaluated_as(cond, seed, min([n, *(cap for cap in (cond.n_scenes, n_scenes) if cap is not None)]))
-            for s in plan.seeds(cond):
+            seeds = plan.seeds(cond)
+            blocks = scene_blocks(common["n_scenes"], len(seeds)) if cond.split_scenes else None
+            for k, s in enumerate(seeds):
                 entry = plan.entry(cond, s)
                 if entry not in available:
                     missing.append(entry)
                     continue
-                jobs.append(Job(cond.name, set_name, "policy", entry, s, **common))
+                if blocks is None:
+                    jobs.append(Job(cond.name, set_name, "policy", entry, s, **common))
+                else:
+                    first, count = blocks[k]
+                    block = {**common, "n_scenes": count, "first_scene": first}
+                    jobs.append(Job(cond.name, set_name, "policy", entry, s, **block))
             if baselines:
                 for controller, conds in plan.baselines.items():
                     if cond.name in conds:
@@ -501,15 +547,17 @@ def job_env_and_controller(job: Job, root: str | Path) -> tuple[Any, Any]:
 
 
 def evaluate_shard(job: Job, start: int, stop: int, root: str) -> list[dict]:
-    """Episodes ``start..stop-1`` of ``job`` (module level: runs in a worker process)."""
+    """Episodes ``start..stop-1`` of ``job`` (counted from its first scene; module level: runs in a
+    worker process).  Episode ``i`` of the set runs scene ``i`` with seed ``i`` whatever the shard."""
     from footsim.rl.evaluate import evaluate
     from footsim.tasks.scenes import sample_scenes
 
+    first = job.first_scene
     with _quiet():
         env, controller = job_env_and_controller(job, root)
         try:
-            scenes = sample_scenes(env.sampler, job.n_scenes, job.scenes_seed)
-            return evaluate(env, controller, scenes, seed=0, progress=False, indices=range(start, stop))
+            scenes = sample_scenes(env.sampler, first + job.n_scenes, job.scenes_seed)
+            return evaluate(env, controller, scenes, seed=0, progress=False, indices=range(first + start, first + stop))
         finally:
             env.close()
 
@@ -531,14 +579,20 @@ def run_jobs(
     jobs: Sequence[Job], root: Path, workers: int = 1, shard_size: int = 50, progress: bool = True
 ) -> tuple[dict[tuple, list[dict]], dict[tuple, float]]:
     """Every job's episode records (scene order) and worker seconds, shard by shard, with a progress
-    bar over episodes."""
+    bar over episodes.  A 3D shard has ``shard_size`` scenes, a 2D one five times as many (its
+    episodes take milliseconds, so building the env and policy would dominate a small shard); the
+    shards are handed out longest first."""
     from tqdm import tqdm
 
+    def size(job: Job) -> int:
+        return shard_size * (5 if job.backend == "pymunk" else 1)
+
     tasks = [
-        (job, start, min(start + shard_size, job.n_scenes))
+        (job, start, min(start + size(job), job.n_scenes))
         for job in jobs
-        for start in range(0, job.n_scenes, shard_size)
+        for start in range(0, job.n_scenes, size(job))
     ]
+    tasks.sort(key=lambda t: -(t[2] - t[1]) * t[0].episode_cost)  # stable: plan order among equals
     parts: dict[tuple, dict[int, list[dict]]] = {job.key: {} for job in jobs}
     seconds: dict[tuple, float] = {job.key: 0.0 for job in jobs}
     bar = tqdm(total=sum(j.n_scenes for j in jobs), unit="episode", desc="footsim-reproduce", disable=not progress)
@@ -739,11 +793,30 @@ def render_page(plan: Plan, runs: list[dict], cond_rows: list[dict], root: Path,
     for table in plan.tables:
         conds = [plan.conditions[c] for c in table["conditions"]]
         lines += [f"## {table['title']}", "", f"Command: `{_table_command(table['conditions'])}`", ""]
-        used = sorted(
-            {(r["scene_set"], r["scenes_seed"], r["n_scenes"]) for r in runs if r["condition"] in table["conditions"]}
-        )
+        totals: dict[tuple[str, str, str], int] = {}  # a split condition's scenes in all, per set
+        for r in runs:
+            if r["condition"] in table["conditions"] and plan.conditions[r["condition"]].split_scenes:
+                k = (r["condition"], r["scene_set"], r["scenes_seed"])
+                totals[k] = totals.get(k, 0) + int(r["n_scenes"])
+        used = {
+            (r["scene_set"], r["scenes_seed"], int(r["n_scenes"]), "")
+            for r in runs
+            if r["condition"] in table["conditions"] and not plan.conditions[r["condition"]].split_scenes
+        }
+        split_by: dict[tuple[str, str, int], list[str]] = {}
+        for (cond_name, name, seed), n in totals.items():
+            split_by.setdefault((name, seed, n), []).append(cond_name)
+        used |= {
+            (name, seed, n, f" in all, split over the seeds ({', '.join(sorted(names))})")
+            for (name, seed, n), names in split_by.items()
+        }
         if used:
-            lines += ["Scenes: " + "; ".join(f"{name}: seed {seed}, {n} scenes" for name, seed, n in used) + ".", ""]
+            lines += [
+                "Scenes: "
+                + "; ".join(f"{name}: seed {seed}, {n} scenes{split}" for name, seed, n, split in sorted(used))
+                + ".",
+                "",
+            ]
         lines += ["Training:", ""] + [f"* {_train_line(plan, c)}" for c in conds] + [""]
         lines += ["Zoo entries:", ""] + [f"* {_zoo_line(plan, c, runs, root)}" for c in conds] + [""]
         lines += [header, "|" + "---|" * 12]
@@ -822,15 +895,25 @@ def matrix_lines(plan: Plan, matrix: Matrix, cstats: dict, data_dir: str) -> lis
     """A transfer matrix on the page: one success table per randomization and what each 3D-trained row
     keeps of its own backend's success on the other 3D backends."""
     seed, n = plan.scene_sets[matrix.scene_set]
-    caps = sorted({plan.conditions[c].n_scenes or n for c in matrix.cells.values()})
+    cells = [plan.conditions[c] for c in matrix.cells.values()]
+    split = sorted({c.n_scenes or n for c in cells if c.split_scenes})
+    per_seed = sorted({c.n_scenes or n for c in cells if not c.split_scenes})
+    scenes = []
+    if split:
+        scenes.append(
+            f"{' or '.join(map(str, split))} scenes per derived 3D cell in all, split over the row's seeds in "
+            "consecutive blocks"
+        )
+    if per_seed:
+        scenes.append(f"{' or '.join(map(str, per_seed))} scenes per seed in the other cells")
     names = sorted(set(matrix.cells.values()))
     lines = [
         f"## Transfer matrix: {matrix.title}",
         "",
         f"Command: `footsim-reproduce only=matrix` (this matrix's cells: `{','.join(names)}`).",
         "",
-        f"Success on the {matrix.scene_set} scenes (seed {seed}; {' or '.join(map(str, caps))} scenes per cell, "
-        f"at most {n}): mean over the row's training seeds [95 % bootstrap interval]; a cell of one seed says so. "
+        f"Success on the {matrix.scene_set} scenes (seed {seed}; {'; '.join(scenes)}): mean over the row's "
+        "training seeds [95 % bootstrap interval]; a cell of one seed says so. "
         f"Rows: the policies of a trained condition (its training command is in the tables above); columns: the "
         f"backend they are evaluated on. Heatmap: `{data_dir}/{matrix_plot_name(matrix)}`.",
         "",
@@ -1182,7 +1265,7 @@ def reproduce(
     jobs, missing = plan_jobs(plan, conditions, root, n_scenes, sets, baselines)
     old_runs = read_csv(out / RUNS_FILE)
     recorded = {tuple(r[k] for k in KEY): int(r["n_scenes"]) for r in old_runs}
-    fewer = [j for j in jobs if recorded.get(tuple(str(v) for v in j.key), 0) > j.n_scenes]
+    fewer = [j for j in jobs if n_scenes is not None and recorded.get(tuple(str(v) for v in j.key), 0) > j.n_scenes]
     if fewer:  # a quick look (n_scenes=20) must not replace the full evaluations in the data files
         j = fewer[0]
         raise PlanError(

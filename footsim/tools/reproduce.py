@@ -6,9 +6,9 @@ Keys: ``plan`` (default conf/study/v1.yaml), ``zoo`` (default $FOOTSIM_ZOO or fo
 ``out`` (data files and plots, default docs/results), ``page`` (default docs/RESULTS.md),
 ``only`` (2d, 3d or condition names, comma-separated), ``sets`` (scene sets, default all),
 ``n_scenes`` (at most this many scenes per set), ``jobs`` (worker processes, default 1),
-``shard_size`` (scenes per task, default 50), ``baselines`` (true), ``plots`` (true), ``progress``
-(true), ``strict`` (exit 1 when a cell changed; false).  Training: ``train=true [launcher=L |
-+launcher=L] [runs_dir=DIR] [dry_run=true] [add=true]``.
+``shard_size`` (scenes per 3D task, default 50; a 2D task takes five times as many), ``baselines``
+(true), ``plots`` (true), ``progress`` (true), ``strict`` (exit 1 when a cell changed; false).
+Training: ``train=true [launcher=L | +launcher=L] [runs_dir=DIR] [dry_run=true] [add=true]``.
 """
 
 from __future__ import annotations
