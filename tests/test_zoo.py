@@ -71,6 +71,9 @@ def test_round_trip_add_list_show_eval_and_init_from(tiny_zoo, tmp_path, capsys)
     ours, theirs = PPO.load(entry / "model.zip").policy.state_dict(), PPO.load(run / "model.zip").policy.state_dict()
     assert ours.keys() == theirs.keys() and all(torch.equal(ours[k], theirs[k]) for k in ours)
     assert (entry / "model.zip").stat().st_size < 0.5 * (run / "model.zip").stat().st_size
+    with zipfile.ZipFile(entry / "model.zip") as ours_zip, zipfile.ZipFile(run / "model.zip") as theirs_zip:
+        assert {i.compress_type for i in ours_zip.infolist()} == {zipfile.ZIP_DEFLATED}  # SB3 writes ZIP_STORED
+        assert ours_zip.read("policy.pth") != b"" and ours_zip.namelist() == theirs_zip.namelist()
 
     zoo_main(["list", f"zoo={root}"])
     listing = capsys.readouterr().out

@@ -241,6 +241,25 @@ def _installed_versions() -> dict:
     return out
 
 
+def deflate_zip(path: Path) -> None:
+    """Rewrite the archive at ``path`` with every member deflated (SB3 stores them uncompressed; the
+    weights shrink by about 7 %), member bytes and names unchanged; atomic."""
+    import zipfile
+
+    from footsim.utils import atomic_save
+
+    with zipfile.ZipFile(path) as archive:
+        members = [(info, archive.read(info)) for info in archive.infolist()]
+
+    def write(target: str) -> None:
+        with zipfile.ZipFile(target, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=9) as out:
+            for info, data in members:
+                info.compress_type = zipfile.ZIP_DEFLATED
+                out.writestr(info, data)
+
+    atomic_save(write, path, ".zip")
+
+
 def _slim_model(source: Path, target: Path) -> dict:
     """Save ``source``'s PPO model to ``target`` with a fresh optimizer state; check the weights survive."""
     import torch
@@ -254,6 +273,7 @@ def _slim_model(source: Path, target: Path) -> dict:
     fresh: Any = policy.optimizer_class  # Adam (SB3's default); its constructor takes lr
     policy.optimizer = fresh(policy.parameters(), lr=model.lr_schedule(1), **policy.optimizer_kwargs)
     atomic_save(model.save, target, ".zip")
+    deflate_zip(target)
     again = PPO.load(target, device="cpu").policy.state_dict()
     if weights.keys() != again.keys() or not all(torch.equal(weights[k], again[k]) for k in weights):
         raise ZooError(f"the policy weights of {target} differ from {source}'s after saving; not adding")
@@ -419,7 +439,7 @@ def add(
                 "at_add": _installed_versions(),
             },
             "check": {"n_scenes": check_scenes, "scenes_seed": STANDARD_SCENES_SEED, "eval_seed": 0},
-            "model": "the run's model.zip with a fresh optimizer state (policy and value weights unchanged)",
+            "model": "the run's model.zip with a fresh optimizer state (policy and value weights unchanged), deflated",
             "files": {},
         }
         prov["files"] = {p.name: _sha256(p) for p in sorted(tmp.iterdir()) if p.is_file()}
