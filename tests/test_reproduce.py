@@ -528,3 +528,46 @@ def test_rows_the_plan_no_longer_has_are_dropped(tmp_path):
     kept, dropped = rp.planned_rows(plan, rows)
     assert kept == rows[:2]  # a matrix cell is evaluated on its matrix's sets only
     assert dropped == ["obst_on_mujoco_dr_default/heldout/policy/obst_s0", "gone/standard/baseline/velocity"]
+
+
+def test_the_page_says_how_a_split_condition_covers_its_scenes(tmp_path):
+    body = (
+        BASE
+        + """  nav_on_mujoco:
+    backend: mujoco
+    task: nav
+    policies: nav
+    n_scenes: 5
+    split_scenes: true
+    sets: [standard]
+tables: [{title: Tiny, conditions: [nav, nav_on_mujoco]}]
+thesis: []
+"""
+    )
+    plan = rp.load_plan(_plan(tmp_path, body))
+
+    def row(condition: str, seed: int, backend: str, first: int, n: int, success: float) -> dict:
+        metrics = {m: 0.0 for m in rp.METRICS} | {"success": success, "success_time_mean": 3.0}
+        info = dict(seed=seed, backend=backend, task="nav", noise="none", randomization="none")
+        info |= dict(scenes_seed=20220101, first_scene=first, n_scenes=n)
+        return {
+            k: rp._text(v) for k, v in ({"condition": condition, "scene_set": "standard"} | info | metrics).items()
+        } | {
+            "kind": "policy",
+            "name": f"nav_s{seed}",
+        }
+
+    runs = [
+        row("nav", 0, "pymunk", 0, 6, 1.0),
+        row("nav", 1, "pymunk", 0, 6, 1.0),
+        row("nav_on_mujoco", 0, "mujoco", 0, 3, 2 / 3),  # 5 scenes over 2 seeds: 0-2 and 3-4
+        row("nav_on_mujoco", 1, "mujoco", 3, 2, 0.5),
+    ]
+    cond_rows = [{k: rp._text(v) for k, v in r.items()} for r in rp.condition_rows(runs)]
+    text = rp.render_page(plan, runs, cond_rows, tmp_path / "zoo", "docs/results")
+    assert (
+        "Scenes: standard: seed 20220101, 5 scenes in all, split over the seeds (nav_on_mujoco); "
+        "standard: seed 20220101, 6 scenes." in text
+    )
+    (cell,) = [line for line in text.splitlines() if line.startswith("| nav_on_mujoco | standard | PPO | 2 |")]
+    assert cell.split(" | ")[4].startswith(f"{(2 / 3 + 0.5) / 2:.3f}")  # the mean of the two seeds' blocks
