@@ -901,8 +901,8 @@ def matrix_lines(plan: Plan, matrix: Matrix, cstats: dict, data_dir: str) -> lis
     scenes = []
     if split:
         scenes.append(
-            f"{' or '.join(map(str, split))} scenes per derived 3D cell in all, split over the row's seeds in "
-            "consecutive blocks"
+            f"{' or '.join(map(str, split))} scenes in all in a split cell (the row's seeds take consecutive blocks "
+            "of them; split: the cells derived for the matrix on a 3D backend and the plan's split_scenes conditions)"
         )
     if per_seed:
         scenes.append(f"{' or '.join(map(str, per_seed))} scenes per seed in the other cells")
