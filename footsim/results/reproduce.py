@@ -492,18 +492,15 @@ def plan_jobs(
             seed, n = plan.scene_sets[set_name]
             common = _evaluated_as(cond, seed, min([n, *(cap for cap in (cond.n_scenes, n_scenes) if cap is not None)]))
             seeds = plan.seeds(cond)
-            blocks = scene_blocks(common["n_scenes"], len(seeds)) if cond.split_scenes else None
-            for k, s in enumerate(seeds):
+            n_cond = common["n_scenes"]
+            blocks = scene_blocks(n_cond, len(seeds)) if cond.split_scenes else [(0, n_cond)] * len(seeds)
+            for s, (first, count) in zip(seeds, blocks):
                 entry = plan.entry(cond, s)
                 if entry not in available:
                     missing.append(entry)
                     continue
-                if blocks is None:
-                    jobs.append(Job(cond.name, set_name, "policy", entry, s, **common))
-                else:
-                    first, count = blocks[k]
-                    block = {**common, "n_scenes": count, "first_scene": first}
-                    jobs.append(Job(cond.name, set_name, "policy", entry, s, **block))
+                block = {**common, "n_scenes": count, "first_scene": first}
+                jobs.append(Job(cond.name, set_name, "policy", entry, s, **block))
             if baselines:
                 for controller, conds in plan.baselines.items():
                     if cond.name in conds:
