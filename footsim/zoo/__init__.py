@@ -260,6 +260,24 @@ def deflate_zip(path: Path) -> None:
     atomic_save(write, path, ".zip")
 
 
+def weights_digest(model_zip: Path) -> str:
+    """SHA-256 of a saved PPO model's policy and value weights: each tensor of ``policy.pth`` by name,
+    dtype, shape and bytes.  It identifies the network whatever the archive's compression or optimizer
+    state, so a run's model, its zoo entry and a child's recorded parent can be compared."""
+    import zipfile
+
+    import torch
+
+    with zipfile.ZipFile(model_zip) as archive:
+        state = torch.load(io.BytesIO(archive.read("policy.pth")), map_location="cpu", weights_only=True)
+    digest = hashlib.sha256()
+    for key in sorted(state):
+        tensor = state[key].contiguous()
+        digest.update(f"{key}|{tensor.dtype}|{tuple(tensor.shape)}|".encode())
+        digest.update(tensor.numpy().tobytes())
+    return digest.hexdigest()
+
+
 def _slim_model(source: Path, target: Path) -> dict:
     """Save ``source``'s PPO model to ``target`` with a fresh optimizer state; check the weights survive."""
     import torch
@@ -336,16 +354,28 @@ def check_episodes(run_dir: Path, n_scenes: int, scenes_seed: int = STANDARD_SCE
         env.close()
 
 
-def _parent_name(parent_path: str | None, root: Path) -> str | None:
-    """``zoo:NAME`` when the parent run is in the zoo (its entry directory, or the run an entry was
-    added from), else None."""
+def _parent_name(parent_path: str | None, root: Path, digest: str | None = None) -> str | None:
+    """``zoo:NAME`` of the entry whose weights are the parent's (``digest``), else of the entry the
+    parent path is or was added from; None when the parent is not in the zoo."""
     if not parent_path:
         return None
+    entries = load_index(root)["entries"]
+    if digest is not None:
+        for name in entries:
+            if entry_weights_digest(name, root) == digest:
+                return f"{PREFIX}{name}"
+        return None
     parent = Path(parent_path).resolve()
-    for name, row in load_index(root)["entries"].items():
+    for name, row in entries.items():
         if parent == (root / name).resolve() or str(parent) == row.get("source_run"):
             return f"{PREFIX}{name}"
     return None
+
+
+def entry_weights_digest(name: str, root: Path | None = None) -> str:
+    """The entry's :func:`weights_digest`, as its provenance records it (computed when it does not)."""
+    prov = provenance(name, root)
+    return prov.get("weights_sha256") or weights_digest(entry_dir(name, root) / "model.zip")
 
 
 def add(
@@ -401,7 +431,11 @@ def add(
             atomic_write_text(tmp / CURVE_FILE, curve)
         train_info = json.loads((run / "train_info.json").read_text()) if (run / "train_info.json").is_file() else {}
         parent = json.loads((run / "parent.json").read_text()) if (run / "parent.json").is_file() else None
-        parent_zoo = _parent_name(parent.get("init_from"), root) if parent else None
+        parent_model = Path(parent["init_from"]) / "model.zip" if parent and parent.get("init_from") else None
+        # the parent's weights as they are now: a run directory trained over since would give another
+        # digest, and the lineage check (footsim-reproduce) then names the mismatch
+        parent_digest = weights_digest(parent_model) if parent_model is not None and parent_model.is_file() else None
+        parent_zoo = _parent_name(parent.get("init_from"), root, parent_digest) if parent else None
         # a run initialised from another starts counting at 0: its own steps; the total adds the
         # parent's (its whole lineage's when the parent is a zoo entry)
         parent_steps = int(parent.get("parent_num_timesteps", 0)) if parent else 0
@@ -422,6 +456,7 @@ def add(
             "randomization": (cfg.get("randomization") or {}).get("name", "none"),
             "agent": cfg.agent.get("name"),
             "obs_size": model["obs_size"],
+            "weights_sha256": weights_digest(tmp / MODEL_FILE),
             "steps": model["num_timesteps"],
             "steps_total": model["num_timesteps"] + parent_steps,
             "wall_time_s": train_info.get("wall_time_s"),
@@ -433,6 +468,7 @@ def add(
                 "backend": parent.get("parent_backend"),
                 "task": parent.get("parent_task"),
                 "steps": parent_steps,
+                "weights_sha256": parent_digest,
             },
             "library_versions": {
                 "at_training (model.zip system_info)": _training_versions(run / MODEL_FILE),
