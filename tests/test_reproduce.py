@@ -319,6 +319,45 @@ def test_reproduce_refuses_a_stale_zoo_entry_before_evaluating(small_study, tmp_
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
+@pytest.mark.xdist_group("tiny_runs")
+def test_an_entry_trained_from_another_policy_than_its_plan_parent_is_refused(small_study, tmp_path):
+    """A child entry records its parent's weights digest; one whose digest is not the plan parent's
+    entry of the same seed (here: seed 1 fine-tuned from seed 0's parent) is named before any evaluation."""
+    import shutil
+
+    root, _ = small_study
+    shutil.copytree(root / "zoo", tmp_path / "zoo")
+    entries = tmp_path / "zoo"
+    parents = {s: zoo.weights_digest(entries / f"nav_s{s}" / "model.zip") for s in (0, 1)}
+    assert parents[0] != parents[1]  # two seeds, two networks
+    index = json.loads((entries / "index.json").read_text())
+    for seed, parent_seed in ((0, 0), (1, 0)):
+        shutil.copytree(entries / f"nav_s{seed}", entries / f"ft_s{seed}")
+        prov_path = entries / f"ft_s{seed}" / "provenance.json"
+        prov = json.loads(prov_path.read_text())
+        prov["parent"] = {"zoo": None, "run": "elsewhere", "weights_sha256": parents[parent_seed]}
+        prov_path.write_text(json.dumps(prov))
+        index["entries"][f"ft_s{seed}"] = {**index["entries"][f"nav_s{seed}"], "condition": "ft"}
+    (entries / "index.json").write_text(json.dumps(index))
+    plan = rp.load_plan(
+        _plan(tmp_path, BASE + "  ft:\n    backend: pymunk\n    task: nav\n    seeds: [0, 1]\n    parent: nav\n")
+    )
+    conditions = list(plan.conditions.values())
+    problems = rp.lineage_problems(plan, conditions, entries)
+    assert problems == [
+        "ft_s1 was trained from other weights than zoo:nav_s1 (condition ft's parent nav, seed 1); "
+        "retrain it (footsim-reproduce train=true only=ft)"
+    ]
+    with pytest.raises(zoo.ZooError, match="ft_s1 was trained from other weights than zoo:nav_s1"):
+        rp.plan_jobs(plan, conditions, entries, None, ["standard"], baselines=False)
+    prov_path = entries / "ft_s0" / "provenance.json"
+    prov_path.write_text(json.dumps({**json.loads(prov_path.read_text()), "parent": {"zoo": None}}))
+    assert rp.lineage_problems(plan, conditions, entries)[0] == (
+        "ft_s0: its provenance records no parent weights, so zoo:nav_s0 cannot be checked"
+    )
+
+
 MATRIX = """
   obst:
     title: tiny obstacles

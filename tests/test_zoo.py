@@ -100,6 +100,10 @@ def test_round_trip_add_list_show_eval_and_init_from(tiny_zoo, tmp_path, capsys)
     zoo_main(["add", str(child), "name=tiny-child", "check_scenes=2", f"zoo={root}"])
     child_prov = zoo.provenance("tiny-child", root)
     assert child_prov["parent"]["zoo"] == "zoo:tiny"
+    # the digest names the network, not the archive: the run's model.zip (stored, with Adam moments)
+    # and the entry's (deflated, fresh optimizer) give one digest, which the child records as its parent
+    assert prov["weights_sha256"] == zoo.weights_digest(run / "model.zip") == child_prov["parent"]["weights_sha256"]
+    assert child_prov["weights_sha256"] != prov["weights_sha256"]  # 128 more steps changed the weights
     assert (child_prov["steps"], child_prov["steps_total"]) == (128, 256)
     assert zoo.names(root) == ["tiny", "tiny-child"]
     assert zoo.verify("tiny", root) == [] and zoo.verify("tiny-child", root) == []
@@ -204,6 +208,12 @@ def test_shipped_zoo_is_small_and_intact():
         listed = set(prov["files"]) | {"provenance.json"}
         assert listed == {p.name for p in (root / name).iterdir()}, name  # no unlisted file ships
         assert zoo.verify(name, root) == [], name
+        assert prov["weights_sha256"] == zoo.weights_digest(root / name / "model.zip"), name
+    # every child entry was trained from the entry the study plan names as its parent (same seed)
+    from footsim.results import reproduce as rp
+
+    plan = rp.load_plan()
+    assert rp.lineage_problems(plan, list(plan.conditions.values()), root) == []
 
 
 @pytest.mark.slow

@@ -475,6 +475,30 @@ def _evaluated_as(cond: Condition, scenes_seed: int, n_scenes: int) -> dict[str,
     )
 
 
+def lineage_problems(plan: Plan, conditions: Sequence[Condition], root: Path) -> list[str]:
+    """Zoo entries of ``conditions`` whose recorded parent weights are not those of the zoo entry the
+    plan names as their parent (the parent condition's entry of the same seed): the page would say a
+    policy descends from one it was not trained from."""
+    available = set(zoo.names(root))
+    problems = []
+    for cond in conditions:
+        if cond.parent is None or cond.policies:
+            continue
+        for s in cond.seeds:
+            child, parent = plan.entry(cond, s), plan.entry(plan.conditions[cond.parent], s)
+            if child not in available or parent not in available:
+                continue
+            recorded = (zoo.provenance(child, root).get("parent") or {}).get("weights_sha256")
+            if recorded is None:
+                problems.append(f"{child}: its provenance records no parent weights, so zoo:{parent} cannot be checked")
+            elif recorded != zoo.entry_weights_digest(parent, root):
+                problems.append(
+                    f"{child} was trained from other weights than zoo:{parent} (condition {cond.name}'s parent "
+                    f"{cond.parent}, seed {s}); retrain it (footsim-reproduce train=true only={cond.name})"
+                )
+    return problems
+
+
 def plan_jobs(
     plan: Plan, conditions: Sequence[Condition], root: Path, n_scenes: int | None, sets: Sequence[str], baselines: bool
 ) -> tuple[list[Job], list[str]]:
@@ -484,6 +508,9 @@ def plan_jobs(
         for s in plan.seeds(cond):
             if plan.entry(cond, s) in available:
                 zoo.check_config(plan.entry(cond, s), root)
+    problems = lineage_problems(plan, conditions, root)
+    if problems:
+        raise zoo.ZooError("zoo entries not trained from the plan's parents:\n  " + "\n  ".join(problems))
     jobs, missing = [], []
     for cond in conditions:
         for set_name in sets:
