@@ -32,7 +32,9 @@ def test_study_plan_v1_training_commands_compose_to_its_conditions():
         cfg = fconf.compose("config", [*cond.train, "seed=0"])
         evaluated = (cond.backend, cond.task, cond.noise, cond.randomization)
         assert (cfg.backend.name, cfg.task.name, cfg.noise.name, cfg.randomization.name) == evaluated, cond.name
-    for name in ("2d_nav", "2d_obst", "2d_nav_noise", "2d_obst_noise", "mj_nav", "mj_obst"):  # the study's conditions
+    study = ("2d_nav", "2d_obst", "2d_nav_noise", "2d_obst_noise", "2d_obst_beta", "2d_obst_beta_noise")
+    study += ("mj_nav", "mj_obst")
+    for name in study:  # the study's conditions
         cond = plan.conditions[name]
         assert len(cond.seeds) >= (5 if cond.backend == "pymunk" else 3), name  # issue 26: >= 5 in 2D, >= 3 in 3D
     for controller in plan.baselines:
@@ -121,6 +123,8 @@ def test_select_and_training_commands(tmp_path, capsys):
         "2d_obst",
         "2d_nav_noise",
         "2d_obst_noise",
+        "2d_obst_beta",
+        "2d_obst_beta_noise",
         "quickstart",
         "quickstart_beta",
     }
