@@ -277,3 +277,39 @@ def test_learning_curve_values_are_written_at_float32_precision():
     values = np.random.default_rng(0).standard_normal(1000).astype(np.float32) * np.float32(50)
     for value in values:
         assert np.float32(float(zoo.float32_text(float(value)))) == value
+
+
+@pytest.mark.parametrize("name", ["quickstart_s0", "2d_obst_beta_s0", "mj_obst_s0"])  # Gaussian 2D, Beta 2D, 3D
+def test_policy_deterministic_action_is_sb3_predict_bit_for_bit(name):
+    """LoadedPolicy computes the deterministic action without SB3's predict (its per-call overhead
+    is most of a 2D evaluation); it must be exactly what predict returns, on observations of the
+    policy's own env and on random ones well outside them (where the Beta head's mode may be NaN:
+    then in both)."""
+    import numpy as np
+    from omegaconf import OmegaConf
+
+    from footsim.env import make_env
+    from footsim.rl.common import LoadedPolicy
+    from footsim.rl.evaluate import eval_run_config
+
+    run_dir = REPO / "footsim" / "zoo" / name
+    policy = LoadedPolicy(run_dir)
+    env = make_env(eval_run_config(run_dir, OmegaConf.create({})))
+    try:
+        obs, _ = env.reset(seed=3)
+        observations = [obs]
+        for _ in range(5):
+            obs, _, done, _, _ = env.step(policy(obs))
+            observations.append(obs)
+            if done:
+                obs, _ = env.reset()
+    finally:
+        env.close()
+    rng = np.random.default_rng(0)
+    observations += list(rng.normal(0.0, 5.0, size=(200, observations[0].size)).astype(np.float32))
+    reference = LoadedPolicy(run_dir)
+    reference._head = None  # what LoadedPolicy does for any other head: SB3's predict
+    for obs in observations:
+        got, expected = policy(obs), reference(obs)
+        assert got.dtype == expected.dtype and got.shape == expected.shape
+        assert np.array_equal(got, expected, equal_nan=True), (obs, got, expected)

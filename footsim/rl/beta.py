@@ -36,9 +36,14 @@ class BetaDistribution(Distribution):
     def proba_distribution_net(self, latent_dim: int) -> nn.Module:
         return nn.Linear(latent_dim, 2 * self.action_dim)
 
-    def proba_distribution(self, params: th.Tensor) -> BetaDistribution:
+    @staticmethod
+    def concentrations(params: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+        """α and β of the head's output (two numbers per action dimension)."""
         a, b = th.chunk(params, 2, dim=-1)
-        self.distribution = th.distributions.Beta(F.softplus(a) + 1.0, F.softplus(b) + 1.0)
+        return F.softplus(a) + 1.0, F.softplus(b) + 1.0
+
+    def proba_distribution(self, params: th.Tensor) -> BetaDistribution:
+        self.distribution = th.distributions.Beta(*self.concentrations(params))
         return self
 
     def _to_unit(self, actions: th.Tensor) -> th.Tensor:
@@ -61,9 +66,15 @@ class BetaDistribution(Distribution):
     def sample(self) -> th.Tensor:
         return self._from_unit(self.distribution.rsample().clamp(_EPS, 1.0 - _EPS))
 
-    def mode(self) -> th.Tensor:
-        alpha, beta = self.distribution.concentration1, self.distribution.concentration0
+    def _mode(self, alpha: th.Tensor, beta: th.Tensor) -> th.Tensor:
         return self._from_unit((alpha - 1.0) / (alpha + beta - 2.0))
+
+    def mode(self) -> th.Tensor:
+        return self._mode(self.distribution.concentration1, self.distribution.concentration0)
+
+    def mode_of(self, params: th.Tensor) -> th.Tensor:
+        """The deterministic action of the head's output, without building the distribution."""
+        return self._mode(*self.concentrations(params))
 
     def actions_from_params(self, params: th.Tensor, deterministic: bool = False) -> th.Tensor:
         self.proba_distribution(params)
