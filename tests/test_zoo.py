@@ -108,6 +108,19 @@ def test_round_trip_add_list_show_eval_and_init_from(tiny_zoo, tmp_path, capsys)
     assert zoo.names(root) == ["tiny", "tiny-child"]
     assert zoo.verify("tiny", root) == [] and zoo.verify("tiny-child", root) == []
 
+    # footsim-zoo remove (on a copy: the other tests share this zoo): refused for a parent, then
+    # child and parent go, index and directories both
+    copy = tmp_path / "zoo_copy"
+    shutil.copytree(root, copy)
+    with pytest.raises(SystemExit, match=r"'tiny' is the parent of tiny-child; remove those first"):
+        zoo_main(["remove", "tiny", f"zoo={copy}"])
+    assert zoo.names(copy) == ["tiny", "tiny-child"] and zoo.verify("tiny", copy) == []
+    zoo_main(["remove", "tiny-child", f"zoo={copy}"])
+    zoo_main(["remove", "tiny", f"zoo={copy}"])
+    assert zoo.names(copy) == [] and sorted(p.name for p in copy.iterdir()) == ["index.json"]
+    with pytest.raises(SystemExit, match=r"no zoo entry 'tiny'"):
+        zoo_main(["remove", "tiny", f"zoo={copy}"])
+
 
 @pytest.mark.slow
 @pytest.mark.xdist_group("tiny_runs")

@@ -1,10 +1,11 @@
-"""``footsim-zoo list | show NAME | add RUN_DIR name=NAME [...] | check [NAME ...]``: the model zoo
+"""``footsim-zoo list | show NAME | add RUN_DIR name=NAME [...] | remove NAME | check [NAME ...]``: the model zoo
 (:mod:`footsim.zoo`).  ``zoo=DIR`` (or ``$FOOTSIM_ZOO``) works on another zoo directory.
 
 * ``list``: one line per entry (condition, seed, backend, task, noise, steps, recorded success).
 * ``show NAME``: the entry's provenance and evaluation summary.
 * ``add RUN_DIR name=NAME [condition=C] [description=TEXT] [commit=SHA|CHECKOUT] [check_scenes=20]
   [force=true]``: copy a finished run in (atomically) and record its provenance and check episodes.
+* ``remove NAME``: take an entry out (refused while another entry records it as its parent).
 * ``check [NAME ...]``: file digests and config composition of the entries (all by default); exit 1 on a problem.
 """
 
@@ -18,7 +19,7 @@ from footsim import zoo
 
 USAGE = (
     "usage: footsim-zoo list | show NAME | add RUN_DIR name=NAME [condition=C] [description=TEXT] "
-    "[commit=SHA|CHECKOUT] [check_scenes=20] [force=true] | check [NAME ...]   (any: zoo=DIR)"
+    "[commit=SHA|CHECKOUT] [check_scenes=20] [force=true] | remove NAME | check [NAME ...]   (any: zoo=DIR)"
 )
 
 
@@ -132,6 +133,11 @@ def main(argv: list[str] | None = None) -> None:
             _show(positional[0], root)
         elif command == "add":
             _add(positional, options, root)
+        elif command == "remove":
+            if len(positional) != 1:
+                raise SystemExit(f"footsim-zoo remove: give one NAME\n{USAGE}")
+            zoo.remove(positional[0], root)
+            print(f"removed {positional[0]} from {root}; zoo size: {zoo.total_size(root) / 1e6:.1f} MB")
         elif command == "check":
             raise SystemExit(_check(positional, root))
         else:

@@ -518,6 +518,29 @@ def add(
     return row
 
 
+def children(name: str, root: Path | None = None) -> list[str]:
+    """The entries that record ``name`` as the zoo entry they were trained from."""
+    ref = f"zoo:{name}"
+    return [n for n in names(root) if (provenance(n, root).get("parent") or {}).get("zoo") == ref]
+
+
+def remove(name: str, root: Path | None = None) -> None:
+    """Take ``name`` out of the zoo: the index first (atomically), then its directory.  Refused for
+    an entry another one was trained from, since that child's lineage would point nowhere."""
+    from footsim.utils import atomic_write_text
+
+    root = (root or zoo_dir()).resolve()
+    if name not in names(root):
+        entry_dir(name, root)  # fails naming the zoo's entries
+    kids = children(name, root)
+    if kids:
+        raise ZooError(f"zoo entry {name!r} is the parent of {', '.join(kids)}; remove those first")
+    index = load_index(root)
+    index["entries"].pop(name, None)
+    atomic_write_text(root / INDEX_FILE, json.dumps(index, indent=2) + "\n")
+    shutil.rmtree(root / name, ignore_errors=True)
+
+
 def verify(name: str, root: Path | None = None) -> list[str]:
     """What is wrong with an entry: files whose digest differs from its provenance, missing files,
     a config that no longer composes (empty when all is well)."""
