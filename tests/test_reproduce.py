@@ -27,16 +27,22 @@ def test_study_plan_v1_training_commands_compose_to_its_conditions():
     assert plan.scene_sets["standard"] == (20220101, 500)
     assert plan.scene_sets["heldout"][0] != 20220101
     trained = [c for c in plan.conditions.values() if not c.policies]
-    assert {c.name for c in trained} >= {"2d_nav", "2d_obst", "2d_nav_noise", "2d_obst_noise", "mj_nav", "mj_obst"}
+    assert {c.name for c in trained} >= {"2d_nav", "2d_obst", "2d_nav_noise", "2d_obst_beta_noise", "mj_nav", "mj_obst"}
     for cond in trained:
         cfg = fconf.compose("config", [*cond.train, "seed=0"])
         evaluated = (cond.backend, cond.task, cond.noise, cond.randomization)
         assert (cfg.backend.name, cfg.task.name, cfg.noise.name, cfg.randomization.name) == evaluated, cond.name
-    study = ("2d_nav", "2d_obst", "2d_nav_noise", "2d_obst_noise", "2d_obst_beta", "2d_obst_beta_noise")
-    study += ("mj_nav", "mj_obst")
+    study = ("2d_nav", "2d_obst", "2d_nav_noise", "2d_obst_beta", "2d_obst_beta_noise")
+    study += ("mj_nav", "mj_obst", "mj_nav_long", "mj_nav_noise", "mj_obst_noise")
     for name in study:  # the study's conditions
         cond = plan.conditions[name]
         assert len(cond.seeds) >= (5 if cond.backend == "pymunk" else 3), name  # issue 26: >= 5 in 2D, >= 3 in 3D
+    # issue 26 item 1: {2D, MuJoCo} x {obstacle-free, obstacles} x {no noise, localization noise}
+    cells = {(c.backend, c.task, c.noise) for c in trained if len(c.seeds) >= (5 if c.backend == "pymunk" else 3)}
+    for backend in ("pymunk", "mujoco"):
+        for task in ("nav", "nav_obstacles"):
+            for noise in ("none", "localization"):
+                assert (backend, task, noise) in cells, (backend, task, noise)
     for controller in plan.baselines:
         fconf.compose("eval", [f"controller={controller}"])  # every baseline names a controller preset
     assert plan.entry(plan.conditions["2d_nav_on_mujoco"], 3) == "2d_nav_s3"  # evaluates 2d_nav's policies
@@ -122,7 +128,6 @@ def test_select_and_training_commands(tmp_path, capsys):
         "2d_nav",
         "2d_obst",
         "2d_nav_noise",
-        "2d_obst_noise",
         "2d_obst_beta",
         "2d_obst_beta_noise",
         "quickstart",
@@ -263,6 +268,13 @@ def test_reproduce_end_to_end(small_study, tmp_path, capsys):
     block = dataclasses.replace(job, first_scene=2, n_scenes=3)
     assert rp.evaluate_shard(block, 0, 3, str(root / "zoo")) == whole[2:5]
     assert [r["scene"] for r in whole[2:5]] == [2, 3, 4]
+    # a shard on the env a worker kept from the job's earlier shards runs what a fresh env runs
+    rp.release_built()
+    assert rp.evaluate_shard(job, 0, 2, str(root / "zoo")) == whole[:2]
+    kept = rp._BUILT[0][2]
+    assert rp.evaluate_shard(job, 2, 6, str(root / "zoo")) == whole[2:]
+    assert rp._BUILT[0][2] is kept  # the same env object: reused, not rebuilt
+    rp.release_built()
 
     # again, in two worker processes: the same cells (episode i keeps scene i and seed i in any shard)
     before = (out / "runs.csv").read_text()

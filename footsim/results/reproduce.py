@@ -570,20 +570,48 @@ def job_env_and_controller(job: Job, root: str | Path) -> tuple[Any, Any]:
     return env, make_controller(env, controller_cfg)
 
 
+#: This process's last job with its env, controller and scenes: the next shard of the same job (the
+#: shards of a job are handed out one after another) reuses them instead of building them again.
+_BUILT: list[tuple[Job, str, Any, Any, list]] = []
+
+
+def _built(job: Job, root: str) -> tuple[Any, Any, list]:
+    from footsim.tasks.scenes import sample_scenes
+
+    if _BUILT and _BUILT[0][:2] == (job, root):
+        return _BUILT[0][2:]
+    release_built()
+    env, controller = job_env_and_controller(job, root)
+    try:
+        scenes = sample_scenes(env.sampler, job.first_scene + job.n_scenes, job.scenes_seed)
+    except BaseException:
+        env.close()
+        raise
+    _BUILT.append((job, root, env, controller, scenes))
+    return env, controller, scenes
+
+
+def release_built() -> None:
+    """Close the env :func:`evaluate_shard` keeps for the next shard of its job."""
+    while _BUILT:
+        _BUILT.pop()[2].close()
+
+
 def evaluate_shard(job: Job, start: int, stop: int, root: str) -> list[dict]:
     """Episodes ``start..stop-1`` of ``job`` (counted from its first scene; module level: runs in a
-    worker process).  Episode ``i`` of the set runs scene ``i`` with seed ``i`` whatever the shard."""
+    worker process).  Episode ``i`` of the set runs scene ``i`` with seed ``i`` whatever the shard,
+    and whatever the env ran before (every episode resets it with its own scene and seed), so a
+    worker keeps the env for the job's next shard."""
     from footsim.rl.evaluate import evaluate
-    from footsim.tasks.scenes import sample_scenes
 
     first = job.first_scene
     with _quiet():
-        env, controller = job_env_and_controller(job, root)
+        env, controller, scenes = _built(job, root)
         try:
-            scenes = sample_scenes(env.sampler, first + job.n_scenes, job.scenes_seed)
             return evaluate(env, controller, scenes, seed=0, progress=False, indices=range(first + start, first + stop))
-        finally:
-            env.close()
+        except BaseException:
+            release_built()  # an env an episode failed in is not reused
+            raise
 
 
 def timed_shard(job: Job, start: int, stop: int, root: str) -> tuple[list[dict], float]:
@@ -643,6 +671,7 @@ def run_jobs(
                     seconds[job.key] += wall
                     bar.update(stop - start)
     finally:
+        release_built()
         bar.close()
     return {key: [r for start in sorted(p) for r in p[start]] for key, p in parts.items()}, seconds
 
