@@ -579,10 +579,17 @@ def test_rows_the_plan_no_longer_has_are_dropped(tmp_path):
         {"condition": "obst_on_mujoco_dr_default", "scene_set": "standard", "kind": "policy", "name": "obst_s0"},
         {"condition": "obst_on_mujoco_dr_default", "scene_set": "heldout", "kind": "policy", "name": "obst_s0"},
         {"condition": "gone", "scene_set": "standard", "kind": "baseline", "name": "velocity"},
+        {"condition": "nav", "scene_set": "standard", "kind": "policy", "name": "nav_s2"},  # seeds: [0, 1]
+        {"condition": "nav", "scene_set": "standard", "kind": "baseline", "name": "velocity"},  # no baselines
     ]
     kept, dropped = rp.planned_rows(plan, rows)
     assert kept == rows[:2]  # a matrix cell is evaluated on its matrix's sets only
-    assert dropped == ["obst_on_mujoco_dr_default/heldout/policy/obst_s0", "gone/standard/baseline/velocity"]
+    assert dropped == [
+        "obst_on_mujoco_dr_default/heldout/policy/obst_s0",
+        "gone/standard/baseline/velocity",
+        "nav/standard/policy/nav_s2",
+        "nav/standard/baseline/velocity",
+    ]
 
 
 def test_the_page_says_how_a_split_condition_covers_its_scenes(tmp_path):

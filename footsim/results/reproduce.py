@@ -726,14 +726,20 @@ def merge_rows(old: list[dict], new: list[dict], key: Sequence[str]) -> list[dic
 
 
 def planned_rows(plan: Plan, runs: list[dict]) -> tuple[list[dict], list[str]]:
-    """The rows of ``runs`` the plan still has (its conditions, on their scene sets), and the keys of the others."""
+    """The rows of ``runs`` the plan still has (its conditions on their scene sets, with their seeds'
+    zoo entries and their baselines), and the keys of the others."""
     kept, dropped = [], []
     for row in runs:
         cond = plan.conditions.get(row["condition"])
-        if cond is None or row["scene_set"] not in (cond.sets or plan.scene_sets):
-            dropped.append("/".join(str(row[k]) for k in KEY))
-        else:
+        planned = cond is not None and row["scene_set"] in (cond.sets or plan.scene_sets)
+        if planned and cond is not None and row["kind"] == "policy":
+            planned = row["name"] in {plan.entry(cond, s) for s in plan.seeds(cond)}
+        elif planned and cond is not None:
+            planned = cond.name in plan.baselines.get(row["name"], ())
+        if planned:
             kept.append(row)
+        else:
+            dropped.append("/".join(str(row[k]) for k in KEY))
     return kept, dropped
 
 
