@@ -186,7 +186,7 @@ class LoadedPolicy:
         """What ``model.predict(obs, deterministic=True)`` returns, computed by the same torch
         operations in the same order, without what predict spends on a single observation
         (switching the modules' training mode, building a distribution object per call): most of
-        an evaluation's time in 2D.  ``tests/test_rl.py`` checks the two agree bit for bit."""
+        an evaluation's time in 2D.  ``tests/test_zoo.py`` checks the two agree bit for bit."""
         import torch as th
         from gymnasium import spaces
         from stable_baselines3.common.preprocessing import preprocess_obs
