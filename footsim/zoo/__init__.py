@@ -79,6 +79,13 @@ def load_index(root: Path | None = None) -> dict:
     return index
 
 
+def write_index(index: dict, root: Path) -> None:
+    """Rewrite the zoo index atomically (an interrupted write leaves the old one)."""
+    from footsim.utils import atomic_write_text
+
+    atomic_write_text(root / INDEX_FILE, json.dumps(index, indent=2) + "\n")
+
+
 def names(root: Path | None = None) -> list[str]:
     return sorted(load_index(root)["entries"])
 
@@ -514,7 +521,7 @@ def add(
     }
     index["entries"][name] = row
     index["entries"] = dict(sorted(index["entries"].items()))
-    atomic_write_text(root / INDEX_FILE, json.dumps(index, indent=2) + "\n")
+    write_index(index, root)
     return row
 
 
@@ -527,8 +534,6 @@ def children(name: str, root: Path | None = None) -> list[str]:
 def remove(name: str, root: Path | None = None) -> None:
     """Take ``name`` out of the zoo: the index first (atomically), then its directory.  Refused for
     an entry another one was trained from, since that child's lineage would point nowhere."""
-    from footsim.utils import atomic_write_text
-
     root = (root or zoo_dir()).resolve()
     if name not in names(root):
         entry_dir(name, root)  # fails naming the zoo's entries
@@ -537,7 +542,7 @@ def remove(name: str, root: Path | None = None) -> None:
         raise ZooError(f"zoo entry {name!r} is the parent of {', '.join(kids)}; remove those first")
     index = load_index(root)
     index["entries"].pop(name, None)
-    atomic_write_text(root / INDEX_FILE, json.dumps(index, indent=2) + "\n")
+    write_index(index, root)
     shutil.rmtree(root / name, ignore_errors=True)
 
 
