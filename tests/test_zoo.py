@@ -321,7 +321,7 @@ def test_policy_deterministic_action_is_sb3_predict_bit_for_bit(name):
     rng = np.random.default_rng(0)
     observations += list(rng.normal(0.0, 5.0, size=(200, observations[0].size)).astype(np.float32))
     reference = LoadedPolicy(run_dir)
-    reference._head = None  # what LoadedPolicy does for any other head: SB3's predict
+    reference._act = None  # what LoadedPolicy does for any other head: SB3's predict
     for obs in observations:
         got, expected = policy(obs), reference(obs)
         assert got.dtype == expected.dtype and got.shape == expected.shape

@@ -142,7 +142,7 @@ class LoadedPolicy:
             raise FileNotFoundError(f"no trained model at {path}")
         self.model = PPO.load(path, device="cpu")
         self.model.policy.set_training_mode(False)  # evaluation only: no module changes mode afterwards
-        self._head = self._deterministic_head()
+        self._act = self._deterministic_act()
         self.obs_rms = None
         vecnorm = run_dir / VECNORM_FILE
         if vecnorm.is_file():
@@ -158,45 +158,47 @@ class LoadedPolicy:
             obs = np.clip(
                 (obs - self.obs_rms.mean) / np.sqrt(self.obs_rms.var + self.epsilon), -self.clip_obs, self.clip_obs
             )
-        if deterministic and self._head is not None:
-            return self._deterministic_action(obs)
+        if deterministic and self._act is not None:
+            return self._act(obs)
         action, _ = self.model.predict(obs, deterministic=deterministic)
         return action
 
-    def _deterministic_head(self):
-        """The deterministic action of the latent features, for the heads whose mode is a plain
-        function of the action net's output (SB3's Gaussian without squashing: the mean; the Beta
-        head: its mode) on Box spaces; None for any other policy (then SB3's ``predict`` decides)."""
+    def _deterministic_act(self):
+        """``obs → model.predict(obs, deterministic=True)``, computed by the same torch operations in
+        the same order, without what predict spends on every single observation (switching the
+        modules' training mode, checking and converting the input, a distribution object per call):
+        most of an evaluation's time in 2D; ``tests/test_zoo.py`` checks the two agree bit for bit.
+        For the heads whose mode is a plain function of the action net's output on Box spaces (SB3's
+        Gaussian without squashing: the mean; the Beta head: its mode); None for any other policy
+        (then SB3's ``predict`` decides)."""
+        import torch as th
         from gymnasium import spaces
         from stable_baselines3.common.distributions import DiagGaussianDistribution
+        from stable_baselines3.common.preprocessing import preprocess_obs
 
         from footsim.rl.beta import BetaDistribution
 
         policy = self.model.policy
-        if not (isinstance(policy.observation_space, spaces.Box) and isinstance(policy.action_space, spaces.Box)):
+        obs_space, space = policy.observation_space, policy.action_space
+        if not (isinstance(obs_space, spaces.Box) and isinstance(space, spaces.Box)):
             return None
         dist = policy.action_dist
         if isinstance(dist, DiagGaussianDistribution) and not policy.squash_output:
-            return policy.action_net
-        if isinstance(dist, BetaDistribution):
-            return lambda latent: dist.mode_of(policy.action_net(latent))
-        return None
+            head = policy.action_net
+        elif isinstance(dist, BetaDistribution):
 
-    def _deterministic_action(self, obs: np.ndarray) -> np.ndarray:
-        """What ``model.predict(obs, deterministic=True)`` returns, computed by the same torch
-        operations in the same order, without what predict spends on a single observation
-        (switching the modules' training mode, building a distribution object per call): most of
-        an evaluation's time in 2D.  ``tests/test_zoo.py`` checks the two agree bit for bit."""
-        import torch as th
-        from gymnasium import spaces
-        from stable_baselines3.common.preprocessing import preprocess_obs
+            def head(latent):
+                return dist.mode_of(policy.action_net(latent))
 
-        policy = self.model.policy
-        obs_space, space = policy.observation_space, policy.action_space
-        assert isinstance(obs_space, spaces.Box) and isinstance(space, spaces.Box)  # see _deterministic_head
-        with th.no_grad():
-            observation = th.as_tensor(np.array(obs).reshape((-1, *obs_space.shape)))
-            features = policy.pi_features_extractor(preprocess_obs(observation, obs_space))
-            action = self._head(policy.mlp_extractor.forward_actor(features))
-        action = np.clip(action.numpy().reshape((-1, *space.shape)), space.low, space.high)
-        return action.squeeze(axis=0) if np.ndim(obs) == len(obs_space.shape) else action
+        else:
+            return None
+
+        def act(obs: np.ndarray) -> np.ndarray:
+            with th.no_grad():
+                observation = th.as_tensor(np.array(obs).reshape((-1, *obs_space.shape)))
+                features = policy.pi_features_extractor(preprocess_obs(observation, obs_space))
+                action = head(policy.mlp_extractor.forward_actor(features))
+            action = np.clip(action.numpy().reshape((-1, *space.shape)), space.low, space.high)
+            return action.squeeze(axis=0) if np.ndim(obs) == len(obs_space.shape) else action
+
+        return act
