@@ -731,10 +731,11 @@ def planned_rows(plan: Plan, runs: list[dict]) -> tuple[list[dict], list[str]]:
     kept, dropped = [], []
     for row in runs:
         cond = plan.conditions.get(row["condition"])
-        planned = cond is not None and row["scene_set"] in (cond.sets or plan.scene_sets)
-        if planned and cond is not None and row["kind"] == "policy":
+        if cond is None or row["scene_set"] not in (cond.sets or plan.scene_sets):
+            planned = False
+        elif row["kind"] == "policy":
             planned = row["name"] in {plan.entry(cond, s) for s in plan.seeds(cond)}
-        elif planned and cond is not None:
+        else:
             planned = cond.name in plan.baselines.get(row["name"], ())
         if planned:
             kept.append(row)
