@@ -32,7 +32,7 @@ def test_study_plan_v1_training_commands_compose_to_its_conditions():
         cfg = fconf.compose("config", [*cond.train, "seed=0"])
         evaluated = (cond.backend, cond.task, cond.noise, cond.randomization)
         assert (cfg.backend.name, cfg.task.name, cfg.noise.name, cfg.randomization.name) == evaluated, cond.name
-    study = ("2d_nav", "2d_obst", "2d_nav_noise", "2d_obst_beta", "2d_obst_beta_hint", "2d_obst_beta_noise")
+    study = ("2d_nav", "2d_obst", "2d_nav_noise", "2d_obst_beta", "2d_obst_beta_noise")
     study += ("mj_nav", "mj_obst", "mj_nav_long", "mj_nav_noise", "mj_obst_beta", "mj_obst_beta_long")
     study += ("mj_obst_beta_noise",)
     for name in study:  # the study's conditions
