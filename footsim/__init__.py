@@ -6,7 +6,31 @@ and tuned settings, for comparisons) with gymnasium and stays light: the simulat
 stable-baselines3 are imported only where they are used.
 """
 
-import gymnasium
+import os
+import platform
+
+
+def _pin_openblas_kernels() -> None:
+    """NumPy's and SciPy's OpenBLAS choose their kernels by CPU when they load (Haswell, SkylakeX,
+    Zen, ...), and the kernels round differently: a 3D walk's small matrix products then differ in
+    the last bits between hosts, which a falling robot amplifies into other outcomes (the MuJoCo
+    footstep baseline on 100 scenes: 6.35 s with SkylakeX kernels, 6.19 s with Haswell's).  One kernel
+    set on every x86-64 CPU with AVX2 keeps the evaluations the same on every such host; a user's
+    own OPENBLAS_CORETYPE wins.  It must be set before NumPy loads OpenBLAS."""
+    if platform.machine().lower() not in ("x86_64", "amd64"):
+        return
+    try:
+        with open("/proc/cpuinfo") as fh:
+            flags = next((line for line in fh if line.startswith("flags")), "").split()
+    except OSError:
+        return
+    if "avx2" in flags and "fma" in flags:
+        os.environ.setdefault("OPENBLAS_CORETYPE", "Haswell")
+
+
+_pin_openblas_kernels()
+
+import gymnasium  # noqa: E402  (after the kernel pin: gymnasium loads NumPy)
 
 __version__ = "0.1.0"
 

@@ -1,0 +1,57 @@
+"""``import footsim`` pins NumPy's OpenBLAS to one kernel set on x86-64 hosts with AVX2, so that a
+3D evaluation gives the same episodes on every such host (footsim/__init__.py says why).  Checked
+against OpenBLAS's own report of the kernels it loaded, in a fresh interpreter."""
+
+import os
+import platform
+import subprocess
+import sys
+
+import pytest
+
+REPORT = """
+import ctypes, glob, os, sys
+{imports}
+import numpy
+libs = glob.glob(os.path.join(os.path.dirname(numpy.__file__), "..", "numpy.libs", "lib*openblas*"))
+for lib in libs:
+    for symbol in ("scipy_openblas_get_corename64_", "scipy_openblas_get_corename", "openblas_get_corename"):
+        fn = getattr(ctypes.CDLL(lib), symbol, None)
+        if fn is not None:
+            fn.restype = ctypes.c_char_p
+            print(fn().decode())
+            sys.exit(0)
+print("unknown")
+"""
+
+
+def _flags() -> set[str]:
+    try:
+        with open("/proc/cpuinfo") as fh:
+            return set(next((line for line in fh if line.startswith("flags")), "").split())
+    except OSError:
+        return set()
+
+
+pytestmark = pytest.mark.skipif(
+    platform.machine().lower() not in ("x86_64", "amd64") or not {"avx2", "fma"} <= _flags(),
+    reason="the kernel pin applies to x86-64 CPUs with AVX2",
+)
+
+
+def _corename(imports: str, **env: str) -> str:
+    environ = {k: v for k, v in os.environ.items() if k != "OPENBLAS_CORETYPE"} | env
+    out = subprocess.run(
+        [sys.executable, "-c", REPORT.format(imports=imports)], capture_output=True, text=True, env=environ, check=True
+    ).stdout.strip()
+    if out == "unknown":
+        pytest.skip("this NumPy's OpenBLAS does not report its kernels")
+    return out
+
+
+def test_import_footsim_loads_the_haswell_kernels():
+    assert _corename("import footsim").lower() == "haswell"
+
+
+def test_a_users_own_kernel_choice_wins():
+    assert _corename("import footsim", OPENBLAS_CORETYPE="Sandybridge").lower() == "sandybridge"
