@@ -10,6 +10,18 @@ import os
 import platform
 
 
+def _x86_with_avx2() -> bool:
+    """Whether this is an x86-64 CPU with AVX2 and FMA (what OpenBLAS's Haswell kernels need)."""
+    if platform.machine().lower() not in ("x86_64", "amd64"):
+        return False
+    try:
+        with open("/proc/cpuinfo") as fh:
+            flags = next((line for line in fh if line.startswith("flags")), "").split()
+    except OSError:
+        return False
+    return "avx2" in flags and "fma" in flags
+
+
 def _pin_openblas_kernels() -> None:
     """NumPy's and SciPy's OpenBLAS choose their kernels by CPU when they load (Haswell, SkylakeX,
     Zen, ...), and the kernels round differently: a 3D walk's small matrix products then differ in
@@ -17,15 +29,8 @@ def _pin_openblas_kernels() -> None:
     footstep baseline on 100 scenes: 6.35 s with SkylakeX kernels, 6.19 s with Haswell's).  One kernel
     set on every x86-64 CPU with AVX2 keeps the evaluations the same on every such host; a user's
     own OPENBLAS_CORETYPE wins.  It must be set before NumPy loads OpenBLAS."""
-    if platform.machine().lower() not in ("x86_64", "amd64"):
-        return
-    try:
-        with open("/proc/cpuinfo") as fh:
-            flags = next((line for line in fh if line.startswith("flags")), "").split()
-    except OSError:
-        return
-    if "avx2" in flags and "fma" in flags:
-        os.environ.setdefault("OPENBLAS_CORETYPE", "Haswell")
+    if "OPENBLAS_CORETYPE" not in os.environ and _x86_with_avx2():
+        os.environ["OPENBLAS_CORETYPE"] = "Haswell"
 
 
 _pin_openblas_kernels()

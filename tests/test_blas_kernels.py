@@ -3,11 +3,12 @@
 against OpenBLAS's own report of the kernels it loaded, in a fresh interpreter."""
 
 import os
-import platform
 import subprocess
 import sys
 
 import pytest
+
+from footsim import _x86_with_avx2
 
 REPORT = """
 import ctypes, glob, os, sys
@@ -25,18 +26,7 @@ print("unknown")
 """
 
 
-def _flags() -> set[str]:
-    try:
-        with open("/proc/cpuinfo") as fh:
-            return set(next((line for line in fh if line.startswith("flags")), "").split())
-    except OSError:
-        return set()
-
-
-pytestmark = pytest.mark.skipif(
-    platform.machine().lower() not in ("x86_64", "amd64") or not {"avx2", "fma"} <= _flags(),
-    reason="the kernel pin applies to x86-64 CPUs with AVX2",
-)
+pytestmark = pytest.mark.skipif(not _x86_with_avx2(), reason="the kernel pin applies to x86-64 CPUs with AVX2")
 
 
 def _corename(imports: str, **env: str) -> str:
