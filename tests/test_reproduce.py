@@ -27,13 +27,14 @@ def test_study_plan_v1_training_commands_compose_to_its_conditions():
     assert plan.scene_sets["standard"] == (20220101, 500)
     assert plan.scene_sets["heldout"][0] != 20220101
     trained = [c for c in plan.conditions.values() if not c.policies]
-    assert {c.name for c in trained} >= {"2d_nav", "2d_obst", "2d_nav_noise", "2d_obst_beta_noise", "mj_nav", "mj_obst"}
+    study_trained = {"2d_nav", "2d_nav_noise", "2d_obst_beta", "2d_obst_beta_noise", "mj_nav", "mj_obst_beta"}
+    assert {c.name for c in trained} >= study_trained
     for cond in trained:
         cfg = fconf.compose("config", [*cond.train, "seed=0"])
         evaluated = (cond.backend, cond.task, cond.noise, cond.randomization)
         assert (cfg.backend.name, cfg.task.name, cfg.noise.name, cfg.randomization.name) == evaluated, cond.name
     study = ("2d_nav", "2d_obst", "2d_nav_noise", "2d_obst_beta", "2d_obst_beta_noise")
-    study += ("mj_nav", "mj_obst", "mj_nav_long", "mj_nav_noise", "mj_obst_beta", "mj_obst_beta_long")
+    study += ("mj_nav", "mj_nav_long", "mj_nav_noise", "mj_obst_beta", "mj_obst_beta_long")
     study += ("mj_obst_beta_noise",)
     for name in study:  # the study's conditions
         cond = plan.conditions[name]
@@ -132,6 +133,7 @@ def test_select_and_training_commands(tmp_path, capsys):
         "2d_obst_beta",
         "2d_obst_beta_hint",
         "2d_obst_beta_noise",
+        "c2d_obst_beta",
         "quickstart",
         "quickstart_beta",
     }

@@ -292,7 +292,8 @@ def test_learning_curve_values_are_written_at_float32_precision():
         assert np.float32(float(zoo.float32_text(float(value)))) == value
 
 
-@pytest.mark.parametrize("name", ["quickstart_s0", "2d_obst_beta_s0", "mj_obst_s0"])  # Gaussian 2D, Beta 2D, 3D
+# Gaussian and Beta, 2D and 3D
+@pytest.mark.parametrize("name", ["quickstart_s0", "2d_obst_beta_s0", "mj_nav_s0", "mj_obst_beta_s0"])
 def test_policy_deterministic_action_is_sb3_predict_bit_for_bit(name):
     """LoadedPolicy computes the deterministic action without SB3's predict (its per-call overhead
     is most of a 2D evaluation); it must be exactly what predict returns, on observations of the
