@@ -131,6 +131,7 @@ def test_select_and_training_commands(tmp_path, capsys):
         "2d_obst",
         "2d_nav_noise",
         "2d_obst_beta",
+        "2d_obst_beta_long",
         "2d_obst_beta_hint",
         "2d_obst_beta_noise",
         "c2d_obst_beta",
