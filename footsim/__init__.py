@@ -8,6 +8,8 @@ stable-baselines3 are imported only where they are used.
 
 import os
 import platform
+import sys
+import warnings
 
 
 def _x86_with_avx2() -> bool:
@@ -28,9 +30,19 @@ def _pin_openblas_kernels() -> None:
     the last bits between hosts, which a falling robot amplifies into other outcomes (the MuJoCo
     footstep baseline on 100 scenes: 6.35 s with SkylakeX kernels, 6.19 s with Haswell's).  One kernel
     set on every x86-64 CPU with AVX2 keeps the evaluations the same on every such host; a user's
-    own OPENBLAS_CORETYPE wins.  It must be set before NumPy loads OpenBLAS."""
-    if "OPENBLAS_CORETYPE" not in os.environ and _x86_with_avx2():
-        os.environ["OPENBLAS_CORETYPE"] = "Haswell"
+    own OPENBLAS_CORETYPE wins.  It must be set before NumPy loads OpenBLAS: imported after NumPy,
+    footsim says so once instead of pinning nothing silently."""
+    if "OPENBLAS_CORETYPE" in os.environ or not _x86_with_avx2():
+        return
+    if "numpy" in sys.modules:
+        warnings.warn(
+            "footsim was imported after NumPy, so NumPy's OpenBLAS chose its kernels by CPU and 3D "
+            "evaluations may differ from docs/RESULTS.md in the last bits and then in outcomes; import "
+            "footsim first or set OPENBLAS_CORETYPE=Haswell before starting Python",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+    os.environ["OPENBLAS_CORETYPE"] = "Haswell"  # for the subprocesses (env workers, evaluation jobs)
 
 
 _pin_openblas_kernels()

@@ -5,6 +5,8 @@ from pathlib import Path
 import pytest
 from budgets import tiny_training
 
+import footsim  # noqa: F401  (before the test modules load NumPy: footsim pins OpenBLAS's kernels)
+
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 #: The tiny training budget of the runs ``tiny_runs`` trains (obstacle-free pymunk by default).

@@ -45,3 +45,12 @@ def test_import_footsim_loads_the_haswell_kernels():
 
 def test_a_users_own_kernel_choice_wins():
     assert _corename("import footsim", OPENBLAS_CORETYPE="Sandybridge").lower() == "sandybridge"
+
+
+def test_imported_after_numpy_footsim_warns_instead_of_pinning_silently():
+    environ = {k: v for k, v in os.environ.items() if k != "OPENBLAS_CORETYPE"}
+    run = [sys.executable, "-W", "error::RuntimeWarning", "-c"]
+    after = subprocess.run([*run, "import numpy, footsim"], capture_output=True, text=True, env=environ)
+    assert after.returncode != 0 and "footsim was imported after NumPy" in after.stderr
+    before = subprocess.run([*run, "import footsim, numpy"], capture_output=True, text=True, env=environ)
+    assert before.returncode == 0, before.stderr
