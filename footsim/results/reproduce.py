@@ -915,7 +915,8 @@ def render_page(plan: Plan, runs: list[dict], cond_rows: list[dict], root: Path,
         "## Plots",
         "",
         f"* `{data_dir}/success_by_seed.png`: each seed's success on the standard scenes, the mean and its interval.",
-        f"* `{data_dir}/learning_curves.png`: training success rate over steps, mean over seeds and the interval band.",
+        f"* `{data_dir}/learning_curves.png`: training success rate over steps, mean over seeds and the interval"
+        " band, one panel per training backend.",
     ]
     for spec in plan.paths:
         cond = plan.conditions[spec["condition"]]
@@ -1214,7 +1215,8 @@ def mean_curve(plan: Plan, cond: Condition, root: Path) -> tuple[np.ndarray, np.
 
 def plot_learning_curves(path: Path, plan: Plan, root: Path) -> bool:
     """Training success rate over steps per trained condition (zoo ``learning_curve.csv``): the mean
-    over seeds and the pointwise 95 % bootstrap band.  False when no entry has a curve."""
+    over seeds and the pointwise 95 % bootstrap band, one panel per training backend (2D runs take
+    millions of steps, 3D ones hundreds of thousands).  False when no entry has a curve."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -1222,28 +1224,30 @@ def plot_learning_curves(path: Path, plan: Plan, root: Path) -> bool:
 
     from footsim.results.stats import bootstrap_interval
 
-    fig, ax = plt.subplots(figsize=(7, 4))
-    drawn = False
-    for i, cond in enumerate(c for c in plan.conditions.values() if not c.policies):
-        curve = mean_curve(plan, cond, root)
-        if curve is None:
-            continue
-        grid, values = curve
-        mean = values.mean(axis=0)
-        ax.plot(grid, mean, color=f"C{i}", label=f"{cond.name} ({len(values)} seeds)")
-        if len(values) > 1:
-            bands = np.array([bootstrap_interval(values[:, k], n_resamples=2000) for k in range(len(grid))])
-            ax.fill_between(grid, bands[:, 0], bands[:, 1], color=f"C{i}", alpha=0.2)
-        drawn = True
-    if drawn:
-        ax.set_xlabel("training steps (this run's own)")
-        ax.set_ylabel("success rate, last 100 training episodes")
+    curves = [(cond, mean_curve(plan, cond, root)) for cond in plan.conditions.values() if not cond.policies]
+    drawn = [(cond, curve) for cond, curve in curves if curve is not None]
+    if not drawn:
+        return False
+    backends = list(dict.fromkeys(cond.backend for cond, _ in drawn))
+    fig, axes = plt.subplots(len(backends), 1, figsize=(10, 3.4 * len(backends)), squeeze=False)
+    colors = [plt.get_cmap("tab20")(k) for k in range(20)]
+    for ax, backend in zip(axes[:, 0], backends):
+        for i, (cond, (grid, values)) in enumerate(c for c in drawn if c[0].backend == backend):
+            color = colors[i % len(colors)]
+            seeds = f"{len(values)} seed{'s' if len(values) > 1 else ''}"
+            ax.plot(grid, values.mean(axis=0), color=color, label=f"{cond.name} ({seeds})")
+            if len(values) > 1:
+                bands = np.array([bootstrap_interval(values[:, k], n_resamples=2000) for k in range(len(grid))])
+                ax.fill_between(grid, bands[:, 0], bands[:, 1], color=color, alpha=0.2)
+        ax.set_title(f"trained on {backend}", fontsize=10)
+        ax.set_xlabel("training steps (each run's own: a fine-tune counts from 0)")
+        ax.set_ylabel("training success rate\n(last 100 episodes)")
         ax.set_ylim(-0.02, 1.02)
-        ax.legend(fontsize=8)
-        fig.tight_layout()
-        atomic_save(lambda tmp: fig.savefig(tmp, dpi=110, format="png"), path, ".png")
+        ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
+    fig.tight_layout()
+    atomic_save(lambda tmp: fig.savefig(tmp, dpi=110, format="png"), path, ".png")
     plt.close(fig)
-    return drawn
+    return True
 
 
 def path_plot_name(spec: dict, k: int) -> str:
