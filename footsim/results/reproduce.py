@@ -1145,8 +1145,11 @@ def plot_success_by_seed(path: Path, plan: Plan, runs: list[dict], cstats_rows: 
     import matplotlib.pyplot as plt
 
     tabled = [c for table in plan.tables for c in table["conditions"]]
-    conds = [c for c in dict.fromkeys(tabled) if any(r["condition"] == c for r in runs)]
-    fig, ax = plt.subplots(figsize=(max(6, 1.2 * len(conds) + 2), 4))
+    conds = [
+        c for c in dict.fromkeys(tabled) if any(r["condition"] == c and r["scene_set"] == "standard" for r in runs)
+    ]
+    # one row per condition (the tables' order, top down), success along x: readable at any count
+    fig, ax = plt.subplots(figsize=(9, 0.32 * len(conds) + 1.6))
     stats = {
         (r["condition"], r["kind"], r["name"]): r
         for r in cstats_rows
@@ -1158,36 +1161,38 @@ def plot_success_by_seed(path: Path, plan: Plan, runs: list[dict], cstats_rows: 
             for r in runs
             if r["condition"] == cond and r["scene_set"] == "standard" and r["kind"] == "policy"
         ]
-        ax.plot([i] * len(seeds), seeds, "o", color="tab:blue", alpha=0.5, label="seed" if i == 0 else None)
+        ax.plot(seeds, [i] * len(seeds), "o", color="tab:blue", alpha=0.5, label="seed")
         row = stats.get((cond, "policy", "policy"))
         if row is not None and not math.isnan(_number(row["ci_low"])):
             mean, low, high = (_number(row[c]) for c in ("mean", "ci_low", "ci_high"))
             ax.errorbar(
-                [i + 0.15],
                 [mean],
-                yerr=[[mean - low], [high - mean]],
+                [i + 0.2],
+                xerr=[[mean - low], [high - mean]],
                 fmt="s",
+                markersize=4,
                 color="black",
-                capsize=4,
-                label="mean, 95 % CI" if i == 0 else None,
+                capsize=3,
+                label="mean, 95 % CI",
             )
         for j, (controller, cs) in enumerate(plan.baselines.items()):
             brow = stats.get((cond, "baseline", controller))
             if cond in cs and brow is not None:
                 ax.plot(
-                    [i - 0.15 - 0.1 * j],
                     [_number(brow["mean"])],
+                    [i - 0.2 - 0.1 * j],
                     "x",
                     color=f"C{j + 2}",
                     label=f"{controller} baseline",
                 )
     handles, labels = ax.get_legend_handles_labels()
     unique = dict(zip(labels, handles))
-    ax.legend(unique.values(), unique.keys(), fontsize=7, loc="lower left")
-    ax.set_xticks(range(len(conds)), conds, rotation=20, fontsize=8)
-    ax.set_xlim(-0.7, len(conds) - 0.3)
-    ax.set_ylabel("success (standard scenes)")
-    ax.set_ylim(-0.02, 1.02)
+    ax.legend(unique.values(), unique.keys(), fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    ax.set_yticks(range(len(conds)), conds, fontsize=8)
+    ax.set_ylim(len(conds) - 0.5, -0.5)
+    ax.set_xlabel("success (standard scenes)")
+    ax.set_xlim(-0.02, 1.02)
+    ax.grid(axis="x", alpha=0.3)
     fig.tight_layout()
     atomic_save(lambda tmp: fig.savefig(tmp, dpi=110, format="png"), path, ".png")
     plt.close(fig)
