@@ -230,6 +230,15 @@ class AgentConfig:
 
 
 @dataclass
+class SelectSection:
+    """``train.select``: keep the best policy on validation scenes (``footsim.rl.selection``)."""
+
+    every: int = MISSING
+    n_scenes: int = MISSING
+    scenes_seed: int = MISSING
+
+
+@dataclass
 class TrainSection:
     """``footsim-train``'s ``train`` section."""
 
@@ -239,6 +248,7 @@ class TrainSection:
     checkpoint_freq: int = MISSING
     progress_bar: bool = MISSING
     tensorboard: bool = MISSING
+    select: SelectSection = MISSING
 
 
 @dataclass

@@ -4,6 +4,8 @@ The run directory is Hydra's output dir.  It receives ``config.yaml`` (resolved)
 ``vecnormalize.pkl``, ``checkpoints/`` (written atomically every ``train.checkpoint_freq`` env
 steps), TensorBoard logs in ``tb/``, and ``eval/`` with the evaluation results.
 ``footsim-train resume=RUN_DIR`` continues an interrupted run from its latest checkpoint.
+With ``train.select.every=N`` the run's ``model.zip`` is its best policy on validation scenes, not
+its last (``footsim.rl.selection``; ``checkpoints/latest.zip`` stays the last).
 """
 
 from __future__ import annotations
@@ -12,6 +14,7 @@ import signal
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 
@@ -30,6 +33,7 @@ from footsim.rl.common import (
     write_json,
 )
 from footsim.rl.evaluate import evaluate_run
+from footsim.rl.selection import Selector, make_selection_callback, select_config, validate_select
 from footsim.rl.transfer import init_from_run, reset_log_std
 from footsim.utils import atomic_save
 
@@ -180,6 +184,7 @@ def train(cfg: DictConfig, run_dir: Path) -> dict:
         if not (run_dir / CHECKPOINT_DIR / LATEST).is_file():
             raise FileNotFoundError(f"resume: no checkpoint in {run_dir / CHECKPOINT_DIR}")
     validate_train_config(cfg)  # a bad value fails here, before torch is imported
+    validate_select(cfg)
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecNormalize
@@ -224,18 +229,21 @@ def train(cfg: DictConfig, run_dir: Path) -> dict:
             print(f"initialised from {lineage['init_from']} ({lineage['parent_backend']}, {lineage['parent_task']})")
         done = 0
     remaining = int(cfg.train.total_timesteps) - done
+    settings = select_config(cfg)
+    selector = Selector(cfg, run_dir, settings) if settings else None
     started = time.time()
     if remaining > 0:
         from stable_baselines3.common.callbacks import CallbackList
 
         with StopOnInterrupt() as stop:
-            callback = CallbackList(
-                [
-                    _make_checkpoint_callback(run_dir, int(cfg.train.checkpoint_freq), int(cfg.train.n_envs)),
-                    _make_outcome_callback(),
-                    _make_stop_callback(stop),
-                ]
-            )
+            callbacks = [
+                _make_checkpoint_callback(run_dir, int(cfg.train.checkpoint_freq), int(cfg.train.n_envs)),
+                _make_outcome_callback(),
+                _make_stop_callback(stop),
+            ]
+            if selector is not None:
+                callbacks.append(make_selection_callback(selector, int(cfg.train.n_envs)))
+            callback = CallbackList(callbacks)
             model.learn(
                 total_timesteps=remaining,
                 callback=callback,
@@ -246,6 +254,8 @@ def train(cfg: DictConfig, run_dir: Path) -> dict:
         if stop.requested:
             save_checkpoint(model, run_dir)
             venv.close()
+            if selector is not None:
+                selector.close()
             print(f"interrupted: checkpoint saved; continue with footsim-train resume={run_dir}", flush=True)
             raise SystemExit(130)  # the shell's code for Ctrl-C
     wall = time.time() - started
@@ -255,14 +265,22 @@ def train(cfg: DictConfig, run_dir: Path) -> dict:
         atomic_save(vec_normalize.save, run_dir / VECNORM_FILE, ".pkl")
     save_checkpoint(model, run_dir)
     venv.close()
-    write_json(
-        run_dir / "train_info.json",
-        {
-            "num_timesteps": int(model.num_timesteps),
-            "wall_time_s": wall,
-            "steps_per_s": remaining / wall if wall > 0 and remaining > 0 else None,
-        },
-    )
+    info: dict[str, Any] = {
+        "num_timesteps": int(model.num_timesteps),
+        "wall_time_s": wall,
+        "steps_per_s": remaining / wall if wall > 0 and remaining > 0 else None,
+    }
+    if selector is not None:  # the final policy is a candidate too; the best becomes model.zip
+        try:
+            if int(model.num_timesteps) not in selector.validated_steps:
+                selector.validate(model)
+            best = selector.install_best()
+            assert best is not None  # validated just above
+        finally:
+            selector.close()
+        info["selected"] = best
+        print(f"selected the policy at {best['num_timesteps']} steps (validation success {best['success']:.3f})")
+    write_json(run_dir / "train_info.json", info)
     print(f"trained {model.num_timesteps} steps in {wall:.0f} s; model: {run_dir / MODEL_FILE}")
 
     if not cfg.eval.after_train:
