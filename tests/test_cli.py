@@ -174,6 +174,7 @@ def test_baseline_evaluation_applies_the_randomization_preset(tmp_path):
         ("noise.sigma_x=-0.1", "noise.sigma_x must be a number >= 0"),
         ("task.scenes.ball_radius=-0.1", "task.scenes.ball_radius must be a positive number"),
         ("agent.lr_schedule=cosine", "agent.lr_schedule must be one of"),
+        ("train.select.scenes_seed=-7", "train.select.scenes_seed must be a non-negative integer"),
     ],
 )
 def test_bad_config_fails_at_start_naming_the_key(tmp_path, override, message):

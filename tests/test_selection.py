@@ -1,0 +1,90 @@
+"""Policy selection on validation scenes (``train.select``): the schedule, the choice, the installed model."""
+
+import csv
+import json
+import subprocess
+import zipfile
+
+import pytest
+from budgets import tiny_training
+from omegaconf import OmegaConf
+
+from footsim.rl.selection import _better, validate_select
+
+
+def _cfg(**select):
+    return OmegaConf.create({"train": {"select": select}, "eval": {"scenes": None, "scenes_seed": 20220101}})
+
+
+def test_the_better_policy_succeeds_more_then_falls_and_collides_less_then_came_first():
+    a = {"success": 0.80, "fall": 0.10, "collision": 0.05}
+    assert _better(a, None)
+    assert _better({"success": 0.81, "fall": 0.19, "collision": 0.0}, a)  # success first
+    assert _better({"success": 0.80, "fall": 0.05, "collision": 0.05}, a)  # then fewer unsafe endings
+    assert not _better(dict(a), a)  # a tie keeps the earlier policy
+    assert not _better({"success": 0.79, "fall": 0.0, "collision": 0.0}, a)
+
+
+@pytest.mark.parametrize(
+    "select,message",
+    [
+        ({"every": -1, "n_scenes": 10, "scenes_seed": 7}, "train.select.every must be a non-negative integer"),
+        ({"every": 100, "n_scenes": 0, "scenes_seed": 7}, "train.select.n_scenes must be positive"),
+        ({"every": 100, "n_scenes": 10, "scenes_seed": 20220101}, "is eval.scenes_seed"),
+    ],
+)
+def test_a_select_section_that_cannot_work_fails_naming_the_key(select, message):
+    with pytest.raises(ValueError, match=message):
+        validate_select(_cfg(**select))
+
+
+def test_selection_off_accepts_any_validation_seed():
+    validate_select(_cfg(every=0, n_scenes=10, scenes_seed=20220101))
+
+
+def _weights(path):
+    with zipfile.ZipFile(path) as z:
+        return z.read("policy.pth")
+
+
+@pytest.mark.slow
+def test_the_run_keeps_its_best_validated_policy_and_an_independent_evaluation_agrees(tmp_path):
+    run_dir = tmp_path / "run"
+    overrides = tiny_training(
+        768, "task=nav_obstacles", "train.select.every=256", "train.select.n_scenes=6", "train.select.scenes_seed=7"
+    )
+    proc = subprocess.run(
+        ["footsim-train", *overrides, "eval.after_train=false", f"hydra.run.dir={run_dir}"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    with open(run_dir / "selection.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    # 2 envs, every 256 env steps: validations at 256, 512 and 768; the final policy (768) is not run twice
+    assert [int(r["num_timesteps"]) for r in rows] == [256, 512, 768]
+
+    def key(row):
+        return (float(row["success"]), -(float(row["fall"]) + float(row["collision"])))
+
+    best_by_hand = max(rows, key=key)  # max returns the first of equal keys: the earlier policy
+    assert [int(r["best"]) for r in rows].count(1) >= 1 and best_by_hand["best"] == "1"
+    selected = json.loads((run_dir / "train_info.json").read_text())["selected"]
+    assert selected["num_timesteps"] == int(best_by_hand["num_timesteps"])
+    assert _weights(run_dir / "model.zip") == _weights(run_dir / "checkpoints" / "best" / "model.zip")
+    if selected["num_timesteps"] != 768:
+        assert _weights(run_dir / "model.zip") != _weights(run_dir / "checkpoints" / "latest.zip")
+
+    # footsim-eval on the validation scenes reproduces the figure the selection recorded
+    out = tmp_path / "eval"
+    proc = subprocess.run(
+        ["footsim-eval", f"run={run_dir}", "n_scenes=6", "scenes_seed=7", "plot=false", f"hydra.run.dir={out}"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    summary = json.loads((out / "summary.json").read_text())
+    for metric in ("success", "fall", "collision", "timeout"):
+        assert summary[metric] == pytest.approx(float(best_by_hand[metric])), metric
