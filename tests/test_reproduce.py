@@ -641,3 +641,55 @@ thesis: []
     )
     (cell,) = [line for line in text.splitlines() if line.startswith("| nav_on_mujoco | standard | PPO | 2 |")]
     assert cell.split(" | ")[4].startswith(f"{(2 / 3 + 0.5) / 2:.3f}")  # the mean of the two seeds' blocks
+
+
+STAGES = """  stage:
+    backend: pymunk
+    task: nav
+    seeds: [0, 1]
+    parent: nav
+    shipped: false
+    train: [train.total_timesteps=64]
+  top:
+    title: tiny, two stages on
+    backend: pymunk
+    task: nav
+    seeds: [0, 1]
+    parent: stage
+    train: [train.total_timesteps=32]
+"""
+
+
+def test_a_training_stage_is_trained_and_listed_but_never_shipped_or_evaluated(tmp_path):
+    plan = rp.load_plan(_plan(tmp_path, BASE + STAGES + "tables: [{title: Tiny, conditions: [top]}]\nthesis: []\n"))
+    runs = tmp_path / "runs"
+    commands = rp.train_commands(plan, rp.select(plan, "top"), runs, None)
+    # nav's two seeds, then the stage's from them, then top's from the stage's
+    assert [c[-1].rsplit("/", 2)[-2] for c in commands] == ["nav", "nav", "stage", "stage", "top", "top"]
+    assert f"init_from={runs}/stage/seed1" in commands[-1]
+    jobs, missing = rp.plan_jobs(plan, list(plan.conditions.values()), tmp_path / "zoo", None, ["standard"], True)
+    assert {j.condition for j in jobs} == set() and "stage_s0" not in missing and "top_s0" in missing
+    row = {"condition": "stage", "scene_set": "standard", "kind": "policy", "name": "stage_s0"}
+    assert rp.planned_rows(plan, [row]) == ([], ["stage/standard/policy/stage_s0"])
+    text = rp.render_page(plan, [], [], tmp_path / "zoo", "docs/results")
+    training = text.split("Training:")[1].split("Zoo entries:")[0]
+    assert training.index(
+        "* stage: `footsim-train train.total_timesteps=64 seed=<S> init_from=runs/study/nav/seed<S>`"
+    ) < (training.index("* top: "))
+    assert "(a training stage: its policies are not in the zoo)" in training and "* nav:" not in training
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        ("tables: [{title: T, conditions: [stage]}]\n", r"tables\[0\]\.conditions: 'stage' is a training stage only"),
+        ("baselines: {velocity: [stage]}\n", r"baselines\.velocity: 'stage' is a training stage only"),
+        (
+            "thesis: [{question: q, thesis: t, figures: [{label: s, condition: stage, metric: success}]}]\n",
+            r"thesis\[0\]\.figures\[0\]\.condition: 'stage' is a training stage only",
+        ),
+    ],
+)
+def test_a_training_stage_cannot_be_shown(tmp_path, extra, message):
+    with pytest.raises(rp.PlanError, match=message):
+        rp.load_plan(_plan(tmp_path, BASE + STAGES + extra))

@@ -92,6 +92,10 @@ class Condition:
     #: plan's list takes the k-th block), so that a row of five seeds costs what a row of one does
     #: and together they still cover n_scenes different scenes.
     split_scenes: bool = False
+    #: False: a training stage only, run by ``train=true`` as another condition's parent; its policies
+    #: are not in the zoo and no table, figure or evaluation uses it (the zoo's 30 MB keep the
+    #: conditions a table shows).
+    shipped: bool = True
 
     @property
     def source(self) -> str:
@@ -196,6 +200,7 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
         "randomization",
         "sets",
         "split_scenes",
+        "shipped",
     }
     conditions = {}
     for name, spec_ in need(raw, "conditions", dict, "").items():
@@ -213,6 +218,9 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
             raise PlanError(
                 f"{path}: {where}split_scenes must be true or false, and true needs n_scenes, got {split!r}"
             )
+        shipped = spec_.get("shipped", True)
+        if not isinstance(shipped, bool):
+            raise PlanError(f"{path}: {where}shipped must be true or false, got {shipped!r}")
         conditions[name] = Condition(
             name=name,
             title=str(spec_.get("title", name)),
@@ -227,12 +235,25 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
             randomization=str(spec_.get("randomization", "none")),
             sets=cond_sets,
             split_scenes=split,
+            shipped=shipped,
         )
+
+    def shown(name: str, where: str) -> None:
+        """``where`` evaluates or shows condition ``name``: it must exist and ship its policies."""
+        if name not in conditions:
+            raise PlanError(f"{path}: {where}: no condition {name!r}")
+        if not conditions[name].shipped:
+            raise PlanError(f"{path}: {where}: {name!r} is a training stage only (shipped: false), not in the zoo")
+
     for cond in conditions.values():
         for key in ("parent", "policies"):
             ref = getattr(cond, key)
             if ref is not None and ref not in conditions:
                 raise PlanError(f"{path}: conditions.{cond.name}.{key}: no condition {ref!r}")
+        if cond.policies is not None:
+            shown(cond.policies, f"conditions.{cond.name}.policies")
+        if not cond.shipped and cond.policies is not None:
+            raise PlanError(f"{path}: conditions.{cond.name}: shipped: false is for trained conditions, not policies")
         n_seeds = len(conditions[cond.source].seeds)
         if cond.split_scenes and cond.n_scenes is not None and cond.n_scenes < n_seeds:
             raise PlanError(
@@ -243,21 +264,19 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
     baselines = {}
     for controller, conds in (raw.get("baselines") or {}).items():
         for c in conds:
-            if c not in conditions:
-                raise PlanError(f"{path}: baselines.{controller}: no condition {c!r}")
+            shown(c, f"baselines.{controller}")
         baselines[controller] = tuple(conds)
     tables = tuple(raw.get("tables") or ())
     for i, table in enumerate(tables):
         for c in need(table, "conditions", list, f"tables[{i}]."):
-            if c not in conditions:
-                raise PlanError(f"{path}: tables[{i}].conditions: no condition {c!r}")
+            shown(c, f"tables[{i}].conditions")
     thesis = tuple(raw.get("thesis") or ())
     for i, row in enumerate(thesis):
         for j, fig in enumerate(need(row, "figures", list, f"thesis[{i}].")):
             where = f"thesis[{i}].figures[{j}]."
             for key in ("condition", "minus", "reaches"):
-                if fig.get(key) is not None and fig[key] not in conditions:
-                    raise PlanError(f"{path}: {where}{key}: no condition {fig[key]!r}")
+                if fig.get(key) is not None:
+                    shown(fig[key], f"{where}{key}")
             if fig.get("reaches") is not None:
                 for key in ("condition", "reaches"):
                     if conditions[fig[key]].policies:
@@ -271,8 +290,7 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
     paths = tuple(raw.get("paths") or ())
     for i, spec_ in enumerate(paths):
         where = f"paths[{i}]."
-        if need(spec_, "condition", str, where) not in conditions:
-            raise PlanError(f"{path}: {where}condition: no condition {spec_['condition']!r}")
+        shown(need(spec_, "condition", str, where), f"{where}condition")
         if need(spec_, "set", str, where) not in sets:
             raise PlanError(f"{path}: {where}set: no scene set {spec_['set']!r} ({', '.join(sets)})")
         scenes = need(spec_, "scenes", list, where)
@@ -282,6 +300,9 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
                 f"{path}: {where}scenes: scene indices 0..{n_set - 1} of set {spec_['set']!r}, got {scenes!r}"
             )
     matrices = tuple(_matrix(path, i, spec_, conditions, sets) for i, spec_ in enumerate(raw.get("matrices") or ()))
+    for i, matrix in enumerate(matrices):
+        for name in (*matrix.rows.values(), *matrix.cells.values()):
+            shown(name, f"matrices[{i}]")
     media = tuple(raw.get("media") or ())
     for i, spec_ in enumerate(media):
         for key in ("file", "caption", "command"):
@@ -504,6 +525,7 @@ def plan_jobs(
 ) -> tuple[list[Job], list[str]]:
     """The evaluations of ``conditions`` on ``sets``, and the zoo entries the plan names but the zoo lacks."""
     available = set(zoo.names(root))
+    conditions = [c for c in conditions if c.shipped]  # a training stage has no zoo entries
     for cond in conditions:  # a stale entry fails here, naming what changed, before any evaluation
         for s in plan.seeds(cond):
             if plan.entry(cond, s) in available:
@@ -512,7 +534,7 @@ def plan_jobs(
     if problems:
         raise zoo.ZooError("zoo entries not trained from the plan's parents:\n  " + "\n  ".join(problems))
     jobs, missing = [], []
-    for cond in conditions:
+    for cond in (c for c in conditions if c.shipped):
         for set_name in sets:
             if cond.sets is not None and set_name not in cond.sets:
                 continue
@@ -731,7 +753,7 @@ def planned_rows(plan: Plan, runs: list[dict]) -> tuple[list[dict], list[str]]:
     kept, dropped = [], []
     for row in runs:
         cond = plan.conditions.get(row["condition"])
-        if cond is None or row["scene_set"] not in (cond.sets or plan.scene_sets):
+        if cond is None or not cond.shipped or row["scene_set"] not in (cond.sets or plan.scene_sets):
             planned = False
         elif row["kind"] == "policy":
             planned = row["name"] in {plan.entry(cond, s) for s in plan.seeds(cond)}
@@ -808,7 +830,22 @@ def _train_line(plan: Plan, cond: Condition) -> str:
         return f"{cond.name}: the policies of {cond.policies}, evaluated on {cond.backend}"
     parent = f" init_from={plan.runs_dir}/{cond.parent}/seed<S>" if cond.parent else ""
     seeds = ",".join(str(s) for s in cond.seeds)
-    return f"{cond.name}: `{' '.join(['footsim-train', *cond.train])} seed=<S>{parent}` (S = {seeds})"
+    stage = "" if cond.shipped else " (a training stage: its policies are not in the zoo)"
+    return f"{cond.name}: `{' '.join(['footsim-train', *cond.train])} seed=<S>{parent}` (S = {seeds}){stage}"
+
+
+def _with_stages(plan: Plan, conds: Sequence[Condition]) -> list[Condition]:
+    """``conds`` with the training stages (``shipped: false``) their parents go through, each stage
+    before the first condition that descends from it: the commands a reader runs, in order."""
+    out: list[Condition] = []
+    for cond in conds:
+        stages = []
+        parent = plan.conditions[cond.parent] if cond.parent else None
+        while parent is not None and not parent.shipped:
+            stages.append(parent)
+            parent = plan.conditions[parent.parent] if parent.parent else None
+        out += [c for c in reversed(stages) if c not in out] + [cond]
+    return out
 
 
 def _zoo_line(plan: Plan, cond: Condition, runs: list[dict], root: Path) -> str:
@@ -877,7 +914,7 @@ def render_page(plan: Plan, runs: list[dict], cond_rows: list[dict], root: Path,
                 + ".",
                 "",
             ]
-        lines += ["Training:", ""] + [f"* {_train_line(plan, c)}" for c in conds] + [""]
+        lines += ["Training:", ""] + [f"* {_train_line(plan, c)}" for c in _with_stages(plan, conds)] + [""]
         lines += ["Zoo entries:", ""] + [f"* {_zoo_line(plan, c, runs, root)}" for c in conds] + [""]
         lines += [header, "|" + "---|" * 12]
         for cond in conds:
@@ -1460,7 +1497,7 @@ def train(
         if not dry_run:
             subprocess.run([sys.executable, "-c", "from footsim.tools.train import main; main()", *cmd[1:]], check=True)
     if add and not dry_run:
-        for cond in _training_order(plan, conditions):
+        for cond in (c for c in _training_order(plan, conditions) if c.shipped):
             for s in cond.seeds:
                 run = runs_dir / cond.name / f"seed{s}"
                 if (run / "model.zip").is_file():
