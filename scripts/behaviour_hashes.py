@@ -30,10 +30,11 @@ import hashlib
 import json
 import sys
 
+import footsim  # noqa: F401  (registers the env; first, so that it pins OpenBLAS's kernels before NumPy loads)
+
+# isort: split
 import gymnasium as gym
 import numpy as np
-
-import footsim  # noqa: F401  (registers the env)
 
 ENVS = {"": "footsim/FootstepNav-v1", "v0:": "footsim/FootstepNav-v0"}
 

@@ -21,6 +21,9 @@ import tempfile
 import time
 from pathlib import Path
 
+import footsim  # noqa: F401  (before NumPy loads: footsim pins OpenBLAS's kernels)
+
+# isort: split
 import numpy as np
 
 from footsim.geometry import Pose2D

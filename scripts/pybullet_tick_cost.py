@@ -15,6 +15,9 @@ import statistics
 import sys
 import time
 
+import footsim  # noqa: F401  (before NumPy loads: footsim pins OpenBLAS's kernels)
+
+# isort: split
 import numpy as np
 import pybullet as p
 

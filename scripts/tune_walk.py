@@ -27,6 +27,9 @@ from __future__ import annotations
 import sys
 import time
 
+import footsim  # noqa: F401  (before NumPy loads: footsim pins OpenBLAS's kernels)
+
+# isort: split
 import numpy as np
 
 from footsim import config as fconf

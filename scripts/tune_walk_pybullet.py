@@ -17,6 +17,9 @@ import math
 import sys
 import time
 
+import footsim  # noqa: F401  (before NumPy loads: footsim pins OpenBLAS's kernels)
+
+# isort: split
 import numpy as np
 
 from footsim import config as fconf

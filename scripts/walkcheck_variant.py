@@ -15,6 +15,9 @@ from __future__ import annotations
 
 import sys
 
+import footsim  # noqa: F401  (before NumPy loads: footsim pins OpenBLAS's kernels)
+
+# isort: split
 import numpy as np
 import yaml
 

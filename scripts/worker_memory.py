@@ -17,12 +17,13 @@ import statistics
 import subprocess
 import sys
 
+import footsim  # noqa: F401  (registers the env; first, so that it pins OpenBLAS's kernels before NumPy loads)
+
+# isort: split
 import gymnasium as gym
 import numpy as np
 import psutil
 from stable_baselines3.common.vec_env import SubprocVecEnv
-
-import footsim  # noqa: F401  (registers the env)
 
 
 def make(backend: str):

@@ -2,9 +2,11 @@
 3D evaluation gives the same episodes on every such host (footsim/__init__.py says why).  Checked
 against OpenBLAS's own report of the kernels it loaded, in a fresh interpreter."""
 
+import ast
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -54,3 +56,22 @@ def test_imported_after_numpy_footsim_warns_instead_of_pinning_silently():
     assert after.returncode != 0 and "footsim was imported after NumPy" in after.stderr
     before = subprocess.run([*run, "import footsim, numpy"], capture_output=True, text=True, env=environ)
     assert before.returncode == 0, before.stderr
+
+
+SCRIPTS = sorted((Path(__file__).parents[1] / "scripts").glob("*.py"))
+
+
+@pytest.mark.parametrize("script", SCRIPTS, ids=[s.name for s in SCRIPTS])
+def test_each_script_imports_footsim_before_numpy(script):
+    """A script's imports, in its order, in a fresh interpreter: the kernel pin applies (no warning)."""
+    tree = ast.parse(script.read_text())
+    imports = "\n".join(ast.unparse(n) for n in tree.body if isinstance(n, (ast.Import, ast.ImportFrom)))
+    environ = {k: v for k, v in os.environ.items() if k != "OPENBLAS_CORETYPE"}
+    proc = subprocess.run(
+        [sys.executable, "-W", "error::RuntimeWarning", "-c", imports],
+        capture_output=True,
+        text=True,
+        env=environ,
+        cwd=script.parent,
+    )
+    assert proc.returncode == 0, proc.stderr[-1500:]
