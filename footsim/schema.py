@@ -210,6 +210,7 @@ class AgentConfig:
 
     name: str = MISSING
     distribution: str = MISSING
+    beta_action: str = MISSING
     net_arch: NetArchConfig = MISSING
     activation: str = MISSING
     learning_rate: float = MISSING
@@ -281,6 +282,7 @@ class EvalAppConfig:
     n_scenes: int = MISSING
     scenes_seed: int = MISSING
     deterministic: bool = MISSING
+    beta_action: Optional[str] = MISSING
     seed: int = MISSING
     plot: bool = MISSING
     video: bool = MISSING

@@ -56,6 +56,38 @@ def test_beta_policy_learns_saves_and_loads(tmp_path):
     assert np.all(np.abs(action) <= 1)
 
 
+def test_the_mean_action_is_the_beta_mean_and_is_saved_with_the_model(tmp_path):
+    env = FootstepEnv()
+    low, high = env.action_space.low, env.action_space.high
+    model = PPO(
+        BetaActorCriticPolicy,
+        env,
+        n_steps=64,
+        batch_size=64,
+        n_epochs=1,
+        device="cpu",
+        seed=0,
+        policy_kwargs={"deterministic_action": "mean"},
+    )
+    model.learn(64)
+    obs, _ = env.reset(seed=1)
+    with th.no_grad():  # alpha and beta of the head, by hand: softplus + 1 of its two halves
+        latent = model.policy.mlp_extractor.forward_actor(th.as_tensor(obs[None], dtype=th.float32))
+        a, b = th.chunk(model.policy.action_net(latent)[0], 2)
+        alpha, beta = th.nn.functional.softplus(a) + 1, th.nn.functional.softplus(b) + 1
+    mean = low + (high - low) * (alpha / (alpha + beta)).numpy()
+    mode = low + (high - low) * ((alpha - 1) / (alpha + beta - 2)).numpy()
+    np.testing.assert_allclose(model.predict(obs, deterministic=True)[0], mean, rtol=1e-5, atol=1e-6)
+    model.save(tmp_path / "mean.zip")
+    loaded = PPO.load(tmp_path / "mean.zip", device="cpu")
+    np.testing.assert_allclose(loaded.predict(obs, deterministic=True)[0], mean, rtol=1e-5, atol=1e-6)
+    loaded.policy.action_dist.deterministic_action = "mode"
+    np.testing.assert_allclose(loaded.predict(obs, deterministic=True)[0], mode, rtol=1e-5, atol=1e-6)
+    # the mean lies between the mode and the middle of the box
+    middle = (low + high) / 2
+    assert np.all(np.abs(mean - middle) <= np.abs(mode - middle) + 1e-6)
+
+
 def _train(tmp_path, name, *overrides):
     run_dir = tmp_path / name
     proc = subprocess.run(
@@ -172,3 +204,33 @@ def test_reset_log_std_reopens_exploration_after_a_warm_start_and_refuses_beta()
     beta = PPO(BetaActorCriticPolicy, FootstepEnv(), device="cpu", seed=0)
     with pytest.raises(ValueError, match="agent=ppo"):
         reset_log_std(beta, -0.5)
+
+
+@pytest.mark.slow
+@pytest.mark.xdist_group("tiny_runs")
+def test_footsim_eval_takes_the_beta_action_and_refuses_it_for_a_gaussian_policy(tmp_path, tiny_runs):
+    from footsim.rl.common import LoadedPolicy
+
+    beta_run = tiny_runs("ppo_beta", "agent=ppo_beta")
+    obs = np.linspace(-1, 1, 17).astype(np.float32)
+    trained, mean = LoadedPolicy(beta_run), LoadedPolicy(beta_run, beta_action="mean")
+    # an independent route: SB3's predict on the observation normalized by hand, the head switched to its mean
+    model = PPO.load(beta_run / "model.zip", device="cpu")
+    model.policy.action_dist.deterministic_action = "mean"
+    seen = obs
+    if trained.obs_rms is not None:
+        rms = trained.obs_rms
+        seen = np.clip((obs - rms.mean) / np.sqrt(rms.var + trained.epsilon), -trained.clip_obs, trained.clip_obs)
+    np.testing.assert_allclose(mean(obs), model.predict(seen, deterministic=True)[0], rtol=1e-5, atol=1e-6)
+    assert not np.allclose(trained(obs), mean(obs))  # trained with the mode
+    with pytest.raises(ValueError, match="is not a Beta policy"):
+        LoadedPolicy(tiny_runs("ppo", "agent=ppo"), beta_action="mean")
+    out = tmp_path / "eval"
+    proc = subprocess.run(
+        ["footsim-eval", f"run={beta_run}", "n_scenes=3", "plot=false", "beta_action=mean", f"hydra.run.dir={out}"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "Beta mean" in json.loads((out / "summary.json").read_text())["label"]

@@ -693,3 +693,20 @@ def test_a_training_stage_is_trained_and_listed_but_never_shipped_or_evaluated(t
 def test_a_training_stage_cannot_be_shown(tmp_path, extra, message):
     with pytest.raises(rp.PlanError, match=message):
         rp.load_plan(_plan(tmp_path, BASE + STAGES + extra))
+
+
+def test_a_condition_can_evaluate_its_policies_with_the_beta_mean(tmp_path, monkeypatch):
+    body = BASE + "  nav_mean:\n    backend: pymunk\n    task: nav\n    policies: nav\n    beta_action: mean\n"
+    plan = rp.load_plan(_plan(tmp_path, body))
+    monkeypatch.setattr(rp.zoo, "names", lambda root: ["nav_s0", "nav_s1"])
+    monkeypatch.setattr(rp.zoo, "check_config", lambda name, root: None)
+    jobs, missing = rp.plan_jobs(plan, list(plan.conditions.values()), tmp_path, None, ["standard"], False)
+    assert not missing
+    assert {(j.condition, j.name, j.beta_action) for j in jobs} == {
+        ("nav", "nav_s0", None),
+        ("nav", "nav_s1", None),
+        ("nav_mean", "nav_s0", "mean"),
+        ("nav_mean", "nav_s1", "mean"),
+    }
+    with pytest.raises(rp.PlanError, match=r"conditions\.nav_mean\.beta_action must be mode or mean, got 'median'"):
+        rp.load_plan(_plan(tmp_path, body.replace("beta_action: mean", "beta_action: median")))

@@ -96,6 +96,9 @@ class Condition:
     #: are not in the zoo and no table, figure or evaluation uses it (the zoo's 30 MB keep the
     #: conditions a table shows).
     shipped: bool = True
+    #: a Beta policy's deterministic action in this condition's evaluations ("mode" or "mean"); None:
+    #: the one each policy was trained with (``agent.beta_action``)
+    beta_action: str | None = None
 
     @property
     def source(self) -> str:
@@ -201,6 +204,7 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
         "sets",
         "split_scenes",
         "shipped",
+        "beta_action",
     }
     conditions = {}
     for name, spec_ in need(raw, "conditions", dict, "").items():
@@ -221,6 +225,9 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
         shipped = spec_.get("shipped", True)
         if not isinstance(shipped, bool):
             raise PlanError(f"{path}: {where}shipped must be true or false, got {shipped!r}")
+        beta_action = spec_.get("beta_action")
+        if beta_action not in (None, "mode", "mean"):
+            raise PlanError(f"{path}: {where}beta_action must be mode or mean, got {beta_action!r}")
         conditions[name] = Condition(
             name=name,
             title=str(spec_.get("title", name)),
@@ -236,6 +243,7 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
             sets=cond_sets,
             split_scenes=split,
             shipped=shipped,
+            beta_action=beta_action,
         )
 
     def shown(name: str, where: str) -> None:
@@ -461,6 +469,7 @@ class Job:
     n_scenes: int
     randomization: str = "none"
     first_scene: int = 0  # the job evaluates scenes first_scene .. first_scene + n_scenes - 1 of its set
+    beta_action: str | None = None  # a Beta policy's deterministic action, None: its own
 
     @property
     def key(self) -> tuple[str, str, str, str]:
@@ -548,7 +557,7 @@ def plan_jobs(
                 if entry not in available:
                     missing.append(entry)
                     continue
-                block = {**common, "n_scenes": count, "first_scene": first}
+                block = {**common, "n_scenes": count, "first_scene": first, "beta_action": cond.beta_action}
                 jobs.append(Job(cond.name, set_name, "policy", entry, s, **block))
             if baselines:
                 for controller, conds in plan.baselines.items():
@@ -586,7 +595,7 @@ def job_env_and_controller(job: Job, root: str | Path) -> tuple[Any, Any]:
         if (saved.get("randomization") or {}).get("name", "none") != job.randomization:
             asked["randomization"] = job.randomization
         run_cfg = eval_run_config(run_dir, OmegaConf.create(asked))
-        return make_env(run_cfg), PolicyController(LoadedPolicy(run_dir))
+        return make_env(run_cfg), PolicyController(LoadedPolicy(run_dir, beta_action=job.beta_action))
     env = FootstepEnv(backend=job.backend, task=job.task, noise=job.noise, randomization=job.randomization)
     controller_cfg = fconf.to_plain(fconf.compose("eval", [f"controller={job.name}"]).controller)
     return env, make_controller(env, controller_cfg)
@@ -1304,7 +1313,8 @@ def path_jobs(plan: Plan, spec: dict, root: Path) -> list[Job]:
     jobs = []
     seeds = plan.seeds(cond)
     if seeds and plan.entry(cond, seeds[0]) in set(zoo.names(root)):
-        jobs.append(Job(cond.name, spec["set"], "policy", plan.entry(cond, seeds[0]), seeds[0], **common))
+        entry = plan.entry(cond, seeds[0])
+        jobs.append(Job(cond.name, spec["set"], "policy", entry, seeds[0], **common, beta_action=cond.beta_action))
     for controller, conds in plan.baselines.items():
         if cond.name in conds:
             jobs.append(Job(cond.name, spec["set"], "baseline", controller, None, **common))

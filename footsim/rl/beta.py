@@ -4,8 +4,10 @@ The policy head outputs two numbers per action dimension; α = softplus(·) + 1 
 β = softplus(·) + 1 keep the density unimodal (α, β > 1).  Samples x ∈ (0, 1) are rescaled to
 the action bounds, a = low + (high − low)·x, so actions never leave the box and need no
 clipping.  The deterministic action is the **mode** (α − 1)/(α + β − 2) (thesis: "the mode of
-the beta distribution is applied").  Saved and loaded like any SB3 model (the policy class is
-importable), so Beta policies also serve as transfer-learning initialisations.
+the beta distribution is applied"), or with ``deterministic_action="mean"`` the mean α/(α + β),
+which lies nearer the middle of the box than the mode (``agent.beta_action``).  Saved and loaded
+like any SB3 model (the policy class is importable), so Beta policies also serve as
+transfer-learning initialisations.
 """
 
 from __future__ import annotations
@@ -22,13 +24,17 @@ from torch import nn
 from torch.nn import functional as F
 
 _EPS = 1e-6
+DETERMINISTIC_ACTIONS = ("mode", "mean")
 
 
 class BetaDistribution(Distribution):
     distribution: th.distributions.Beta  # set by proba_distribution()
 
-    def __init__(self, action_dim: int, low: np.ndarray, high: np.ndarray):
+    def __init__(self, action_dim: int, low: np.ndarray, high: np.ndarray, deterministic_action: str = "mode"):
         super().__init__()
+        if deterministic_action not in DETERMINISTIC_ACTIONS:
+            raise ValueError(f"the Beta policy's deterministic action must be one of {DETERMINISTIC_ACTIONS}")
+        self.deterministic_action = deterministic_action
         self.action_dim = action_dim
         self.low = th.as_tensor(low, dtype=th.float32)
         self.scale = th.as_tensor(high - low, dtype=th.float32)
@@ -66,15 +72,18 @@ class BetaDistribution(Distribution):
     def sample(self) -> th.Tensor:
         return self._from_unit(self.distribution.rsample().clamp(_EPS, 1.0 - _EPS))
 
-    def _mode(self, alpha: th.Tensor, beta: th.Tensor) -> th.Tensor:
+    def _deterministic(self, alpha: th.Tensor, beta: th.Tensor) -> th.Tensor:
+        if self.deterministic_action == "mean":
+            return self._from_unit(alpha / (alpha + beta))
         return self._from_unit((alpha - 1.0) / (alpha + beta - 2.0))
 
     def mode(self) -> th.Tensor:
-        return self._mode(self.distribution.concentration1, self.distribution.concentration0)
+        """SB3's deterministic action: the mode, or the mean (``deterministic_action``)."""
+        return self._deterministic(self.distribution.concentration1, self.distribution.concentration0)
 
     def mode_of(self, params: th.Tensor) -> th.Tensor:
         """The deterministic action of the head's output, without building the distribution."""
-        return self._mode(*self.concentrations(params))
+        return self._deterministic(*self.concentrations(params))
 
     def actions_from_params(self, params: th.Tensor, deterministic: bool = False) -> th.Tensor:
         self.proba_distribution(params)
@@ -86,7 +95,15 @@ class BetaDistribution(Distribution):
 
 
 class BetaActorCriticPolicy(ActorCriticPolicy):
-    """SB3's actor-critic with a Beta action head (Box action spaces only)."""
+    """SB3's actor-critic with a Beta action head (Box action spaces only); ``deterministic_action``
+    ("mode" or "mean") is saved with the model."""
+
+    def __init__(self, *args, deterministic_action: str = "mode", **kwargs):
+        self.deterministic_action = deterministic_action  # _build, called by the base class, reads it
+        super().__init__(*args, **kwargs)
+
+    def _get_constructor_parameters(self) -> dict:
+        return {**super()._get_constructor_parameters(), "deterministic_action": self.deterministic_action}
 
     def _build(self, lr_schedule) -> None:
         super()._build(lr_schedule)  # feature/MLP extractors, value net, initialisation
@@ -95,7 +112,7 @@ class BetaActorCriticPolicy(ActorCriticPolicy):
         low, high = self.action_space.low, self.action_space.high
         if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high))):
             raise ValueError("the Beta policy needs a bounded Box action space")
-        self.action_dist = BetaDistribution(int(np.prod(self.action_space.shape)), low, high)
+        self.action_dist = BetaDistribution(int(np.prod(self.action_space.shape)), low, high, self.deterministic_action)
         self.action_net = self.action_dist.proba_distribution_net(self.mlp_extractor.latent_dim_pi)
         if self.ortho_init:
             self.action_net.apply(partial(self.init_weights, gain=0.01))

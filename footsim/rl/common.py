@@ -92,6 +92,8 @@ def validate_train_config(cfg: DictConfig) -> None:
         raise ValueError(f"agent.activation must be tanh or relu, got {cfg.agent.activation!r}")
     if cfg.agent.get("distribution", "gaussian") not in ("gaussian", "beta"):
         raise ValueError(f"agent.distribution must be gaussian or beta, got {cfg.agent.distribution!r}")
+    if cfg.agent.get("beta_action", "mode") not in ("mode", "mean"):
+        raise ValueError(f"agent.beta_action must be mode or mean, got {cfg.agent.beta_action!r}")
     if cfg.train.vec_env not in ("auto", "dummy", "subproc"):
         raise ValueError(f"train.vec_env must be auto, dummy or subproc, got {cfg.train.vec_env!r}")
     # the task's and the noise's own checks, here before the env workers (and torch) start
@@ -123,18 +125,25 @@ def policy_class(agent: DictConfig):
 def policy_kwargs(agent: DictConfig) -> dict:
     import torch
 
-    return {
+    kwargs = {
         "net_arch": {"pi": list(agent.net_arch.pi), "vf": list(agent.net_arch.vf)},
         "activation_fn": {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU}[agent.activation],
         "log_std_init": float(agent.log_std_init),
     }
+    if agent.get("distribution", "gaussian") == "beta":
+        kwargs["deterministic_action"] = str(agent.get("beta_action", "mode"))
+    return kwargs
 
 
 class LoadedPolicy:
     """A trained run's policy as a function obs → action (with its observation normalization)."""
 
-    def __init__(self, run_dir: str | os.PathLike, model_file: str = MODEL_FILE):
+    def __init__(self, run_dir: str | os.PathLike, model_file: str = MODEL_FILE, beta_action: str | None = None):
+        """``beta_action`` ("mode" or "mean"): a Beta policy's deterministic action instead of the one
+        it was trained with (``agent.beta_action``); refused for a Gaussian policy."""
         from stable_baselines3 import PPO
+
+        from footsim.rl.beta import DETERMINISTIC_ACTIONS, BetaDistribution
 
         run_dir = Path(run_dir)
         path = run_dir / model_file
@@ -142,6 +151,13 @@ class LoadedPolicy:
             raise FileNotFoundError(f"no trained model at {path}")
         self.model = PPO.load(path, device="cpu")
         self.model.policy.set_training_mode(False)  # evaluation only: no module changes mode afterwards
+        if beta_action is not None:
+            dist = self.model.policy.action_dist
+            if not isinstance(dist, BetaDistribution):
+                raise ValueError(f"beta_action={beta_action}: the policy in {run_dir} is not a Beta policy")
+            if beta_action not in DETERMINISTIC_ACTIONS:
+                raise ValueError(f"beta_action must be one of {DETERMINISTIC_ACTIONS}, got {beta_action!r}")
+            dist.deterministic_action = beta_action
         self._act = self._deterministic_act()
         self.obs_rms = None
         vecnorm = run_dir / VECNORM_FILE

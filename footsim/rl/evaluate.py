@@ -499,7 +499,8 @@ def evaluate_run(run_cfg, run_dir: Path, out_dir: Path, cfg_eval, label: str | N
         scenes = eval_scenes(cfg_eval, env.sampler)
         if bool(scenes[0].obstacles) != bool(env.task.obstacles):
             print("note: the scene set and the task disagree about obstacles; evaluating as given")
-        controller = PolicyController(LoadedPolicy(run_dir), deterministic=bool(cfg_eval.deterministic))
+        policy = LoadedPolicy(run_dir, beta_action=cfg_eval.get("beta_action"))
+        controller = PolicyController(policy, deterministic=bool(cfg_eval.deterministic))
         records = evaluate(
             env,
             controller,
@@ -515,6 +516,8 @@ def evaluate_run(run_cfg, run_dir: Path, out_dir: Path, cfg_eval, label: str | N
         env.close()
     randomization = (run_cfg.get("randomization") or {}).get("name")
     conditions = _conditions(run_cfg.backend.name, run_cfg.task.name, run_cfg.noise.get("name", ""), randomization)
+    if cfg_eval.get("beta_action"):
+        conditions += f", Beta {cfg_eval.beta_action}"
     name = label or f"policy ({conditions})"
     evaluation = (
         ""
@@ -525,6 +528,7 @@ def evaluate_run(run_cfg, run_dir: Path, out_dir: Path, cfg_eval, label: str | N
             config=fconf.to_plain(run_cfg),
             seed=int(cfg_eval.get("seed", 0)),
             deterministic=bool(cfg_eval.deterministic),
+            **({"beta_action": cfg_eval.beta_action} if cfg_eval.get("beta_action") else {}),
         )
     )
     return _finish(out_dir, records, name, cfg_eval, shard, evaluation, len(scenes))
@@ -607,7 +611,7 @@ def evaluate_side_by_side(run_dir: Path, out_dir: Path, cfg_eval) -> list[dict]:
     if cfg_eval.get("backend") is not None:
         note_not_honoured(f"backend={cfg_eval.backend.name}", f"the backends {', '.join(names)}", "backend=")
     fps = float(cfg_eval.get("video_fps", 30.0))
-    policy = LoadedPolicy(run_dir)
+    policy = LoadedPolicy(run_dir, beta_action=cfg_eval.get("beta_action"))
     envs: list[FootstepEnv] = []
     try:
         for name in names:
