@@ -115,6 +115,11 @@ def test_round_trip_add_list_show_eval_and_init_from(tiny_zoo, tmp_path, capsys)
     with pytest.raises(SystemExit, match=r"'tiny' is the parent of tiny-child; remove those first"):
         zoo_main(["remove", "tiny", f"zoo={copy}"])
     assert zoo.names(copy) == ["tiny", "tiny-child"] and zoo.verify("tiny", copy) == []
+    kept = tmp_path / "zoo_keep"  # a training stage goes, its child stays with the lineage it recorded
+    shutil.copytree(root, kept)
+    zoo_main(["remove", "tiny", "keep_children=true", f"zoo={kept}"])
+    assert zoo.names(kept) == ["tiny-child"] and zoo.verify("tiny-child", kept) == []
+    assert zoo.provenance("tiny-child", kept)["parent"] == child_prov["parent"]
     zoo_main(["remove", "tiny-child", f"zoo={copy}"])
     zoo_main(["remove", "tiny", f"zoo={copy}"])
     assert zoo.names(copy) == [] and sorted(p.name for p in copy.iterdir()) == ["index.json"]

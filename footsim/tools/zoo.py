@@ -5,7 +5,8 @@
 * ``show NAME``: the entry's provenance and evaluation summary.
 * ``add RUN_DIR name=NAME [condition=C] [description=TEXT] [commit=SHA|CHECKOUT] [check_scenes=20]
   [force=true]``: copy a finished run in (atomically) and record its provenance and check episodes.
-* ``remove NAME``: take an entry out (refused while another entry records it as its parent).
+* ``remove NAME [keep_children=true]``: take an entry out (refused while another entry records it
+  as its parent, unless keep_children=true: a study plan's training stage).
 * ``check [NAME ...]``: file digests and config composition of the entries (all by default); exit 1 on a problem.
 """
 
@@ -19,7 +20,8 @@ from footsim import zoo
 
 USAGE = (
     "usage: footsim-zoo list | show NAME | add RUN_DIR name=NAME [condition=C] [description=TEXT] "
-    "[commit=SHA|CHECKOUT] [check_scenes=20] [force=true] | remove NAME | check [NAME ...]   (any: zoo=DIR)"
+    "[commit=SHA|CHECKOUT] [check_scenes=20] [force=true] | remove NAME [keep_children=true] "
+    "| check [NAME ...]   (any: zoo=DIR)"
 )
 
 
@@ -136,7 +138,10 @@ def main(argv: list[str] | None = None) -> None:
         elif command == "remove":
             if len(positional) != 1:
                 raise SystemExit(f"footsim-zoo remove: give one NAME\n{USAGE}")
-            zoo.remove(positional[0], root)
+            keep = options.pop("keep_children", "false")
+            if keep not in ("true", "false"):
+                raise SystemExit(f"footsim-zoo remove: keep_children must be true or false, got {keep!r}")
+            zoo.remove(positional[0], root, keep_children=keep == "true")
             print(f"removed {positional[0]} from {root}; zoo size: {zoo.total_size(root) / 1e6:.1f} MB")
         elif command == "check":
             raise SystemExit(_check(positional, root))

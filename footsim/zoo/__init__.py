@@ -531,15 +531,20 @@ def children(name: str, root: Path | None = None) -> list[str]:
     return [n for n in names(root) if (provenance(n, root).get("parent") or {}).get("zoo") == ref]
 
 
-def remove(name: str, root: Path | None = None) -> None:
+def remove(name: str, root: Path | None = None, keep_children: bool = False) -> None:
     """Take ``name`` out of the zoo: the index first (atomically), then its directory.  Refused for
-    an entry another one was trained from, since that child's lineage would point nowhere."""
+    an entry another one was trained from, unless ``keep_children``: a training stage of a study
+    plan (``shipped: false``), whose children's provenance keeps its name, weights digest and steps,
+    though the weights themselves are gone."""
     root = (root or zoo_dir()).resolve()
     if name not in names(root):
         entry_dir(name, root)  # fails naming the zoo's entries
     kids = children(name, root)
-    if kids:
-        raise ZooError(f"zoo entry {name!r} is the parent of {', '.join(kids)}; remove those first")
+    if kids and not keep_children:
+        raise ZooError(
+            f"zoo entry {name!r} is the parent of {', '.join(kids)}; remove those first, or give "
+            "keep_children=true to keep them (their provenance keeps its weights digest and steps)"
+        )
     index = load_index(root)
     index["entries"].pop(name, None)
     write_index(index, root)
