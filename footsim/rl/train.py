@@ -242,7 +242,7 @@ def train(cfg: DictConfig, run_dir: Path) -> dict:
                 _make_stop_callback(stop),
             ]
             if selector is not None:
-                callbacks.append(make_selection_callback(selector, int(cfg.train.n_envs)))
+                callbacks.append(make_selection_callback(selector))
             callback = CallbackList(callbacks)
             model.learn(
                 total_timesteps=remaining,
