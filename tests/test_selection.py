@@ -88,3 +88,28 @@ def test_the_run_keeps_its_best_validated_policy_and_an_independent_evaluation_a
     summary = json.loads((out / "summary.json").read_text())
     for metric in ("success", "fall", "collision", "timeout"):
         assert summary[metric] == pytest.approx(float(best_by_hand[metric])), metric
+
+
+def test_a_resumed_run_keeps_its_validations_best_and_schedule(tmp_path):
+    from types import SimpleNamespace
+
+    from footsim.rl.selection import Selector, make_selection_callback
+
+    (tmp_path / "checkpoints" / "best").mkdir(parents=True)
+    (tmp_path / "selection.csv").write_text(
+        "num_timesteps,success,fall,collision,timeout,success_time_mean,best\n"
+        "20000,0.8,0.2,0.0,0.0,10.0,1\n30000,0.7,0.3,0.0,0.0,10.0,0\n"
+    )
+    best = {"num_timesteps": 20000, "success": 0.8, "fall": 0.2, "collision": 0.0, "timeout": 0.0}
+    (tmp_path / "checkpoints" / "best" / "best.json").write_text(json.dumps(best))
+    selector = Selector(OmegaConf.create({}), tmp_path, {"every": 20000, "n_scenes": 5, "scenes_seed": 7})
+    assert selector.validated_steps == {20000, 30000} and selector.best == best
+    validated = []
+    selector.validate = lambda model: validated.append(model.num_timesteps)  # no env: the schedule only
+    callback = make_selection_callback(selector)
+    callback.model = SimpleNamespace(num_timesteps=30002)  # resumed at 30 002 steps
+    callback._on_training_start()
+    for steps in (30002, 39998, 40000, 40002, 59998, 60000):
+        callback.model.num_timesteps = steps
+        callback._on_step()
+    assert validated == [40000, 60000]  # the next multiples of 20 000, as the interrupted run would have
