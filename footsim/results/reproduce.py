@@ -543,7 +543,7 @@ def plan_jobs(
     if problems:
         raise zoo.ZooError("zoo entries not trained from the plan's parents:\n  " + "\n  ".join(problems))
     jobs, missing = [], []
-    for cond in (c for c in conditions if c.shipped):
+    for cond in conditions:
         for set_name in sets:
             if cond.sets is not None and set_name not in cond.sets:
                 continue

@@ -32,12 +32,21 @@ class BetaDistribution(Distribution):
 
     def __init__(self, action_dim: int, low: np.ndarray, high: np.ndarray, deterministic_action: str = "mode"):
         super().__init__()
-        if deterministic_action not in DETERMINISTIC_ACTIONS:
-            raise ValueError(f"the Beta policy's deterministic action must be one of {DETERMINISTIC_ACTIONS}")
         self.deterministic_action = deterministic_action
         self.action_dim = action_dim
         self.low = th.as_tensor(low, dtype=th.float32)
         self.scale = th.as_tensor(high - low, dtype=th.float32)
+
+    @property
+    def deterministic_action(self) -> str:
+        """ "mode" or "mean": what :meth:`mode` returns (checked when set)."""
+        return self._deterministic_action
+
+    @deterministic_action.setter
+    def deterministic_action(self, value: str) -> None:
+        if value not in DETERMINISTIC_ACTIONS:
+            raise ValueError(f"a Beta policy's deterministic action is one of {DETERMINISTIC_ACTIONS}, got {value!r}")
+        self._deterministic_action = value
 
     def proba_distribution_net(self, latent_dim: int) -> nn.Module:
         return nn.Linear(latent_dim, 2 * self.action_dim)

@@ -11,7 +11,7 @@ import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
 from footsim.config import build_noise, build_task, plain_config, upgrade_run_config
-from footsim.utils import atomic_write_text
+from footsim.utils import atomic_save, atomic_write_text
 
 MODEL_FILE = "model.zip"
 VECNORM_FILE = "vecnormalize.pkl"
@@ -135,6 +135,19 @@ def policy_kwargs(agent: DictConfig) -> dict:
     return kwargs
 
 
+def write_policy(model, directory: Path) -> None:
+    """``model`` and its normalization statistics as a run directory's policy files (atomically)."""
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    directory.mkdir(parents=True, exist_ok=True)
+    atomic_save(model.save, directory / MODEL_FILE, ".zip")
+    venv = model.get_vec_normalize_env()
+    if isinstance(venv, VecNormalize):
+        atomic_save(venv.save, directory / VECNORM_FILE, ".pkl")
+    elif (directory / VECNORM_FILE).exists():
+        (directory / VECNORM_FILE).unlink()
+
+
 class LoadedPolicy:
     """A trained run's policy as a function obs → action (with its observation normalization)."""
 
@@ -143,7 +156,7 @@ class LoadedPolicy:
         it was trained with (``agent.beta_action``); refused for a Gaussian policy."""
         from stable_baselines3 import PPO
 
-        from footsim.rl.beta import DETERMINISTIC_ACTIONS, BetaDistribution
+        from footsim.rl.beta import BetaDistribution
 
         run_dir = Path(run_dir)
         path = run_dir / model_file
@@ -155,9 +168,7 @@ class LoadedPolicy:
             dist = self.model.policy.action_dist
             if not isinstance(dist, BetaDistribution):
                 raise ValueError(f"beta_action={beta_action}: the policy in {run_dir} is not a Beta policy")
-            if beta_action not in DETERMINISTIC_ACTIONS:
-                raise ValueError(f"beta_action must be one of {DETERMINISTIC_ACTIONS}, got {beta_action!r}")
-            dist.deterministic_action = beta_action
+            dist.deterministic_action = beta_action  # checked by the distribution
         self._act = self._deterministic_act()
         self.obs_rms = None
         vecnorm = run_dir / VECNORM_FILE

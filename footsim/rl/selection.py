@@ -26,7 +26,7 @@ from typing import Any
 
 from omegaconf import DictConfig
 
-from footsim.rl.common import CHECKPOINT_DIR, MODEL_FILE, VECNORM_FILE, LoadedPolicy, write_json
+from footsim.rl.common import CHECKPOINT_DIR, MODEL_FILE, VECNORM_FILE, LoadedPolicy, write_json, write_policy
 from footsim.utils import atomic_save, atomic_write_text
 
 SELECTION_FILE = "selection.csv"
@@ -115,7 +115,7 @@ class Selector:
         result = {"num_timesteps": int(model.num_timesteps), **{k: summary[k] for k in COLUMNS[1:-1]}}
         is_best = _better(result, self.best)
         if is_best:
-            _replace_dir(candidate, self.dir / BEST_DIR)
+            _move_dir(candidate, self.dir / BEST_DIR)
             write_json(self.dir / BEST_DIR / BEST_INFO, result)
             self.best = result
         self.rows.append({**result, "best": int(is_best)})
@@ -147,19 +147,6 @@ class Selector:
             self._env = None
 
 
-def write_policy(model, directory: Path) -> None:
-    """``model`` and its normalization statistics as a run directory's policy files (atomically)."""
-    from stable_baselines3.common.vec_env import VecNormalize
-
-    directory.mkdir(parents=True, exist_ok=True)
-    atomic_save(model.save, directory / MODEL_FILE, ".zip")
-    venv = model.get_vec_normalize_env()
-    if isinstance(venv, VecNormalize):
-        atomic_save(venv.save, directory / VECNORM_FILE, ".pkl")
-    elif (directory / VECNORM_FILE).exists():
-        (directory / VECNORM_FILE).unlink()
-
-
 def _copy_atomically(source: Path, target: Path) -> None:
     def copy(tmp: str) -> None:
         shutil.copyfile(source, tmp)
@@ -167,16 +154,14 @@ def _copy_atomically(source: Path, target: Path) -> None:
     atomic_save(copy, target, target.suffix)
 
 
-def _replace_dir(source: Path, target: Path) -> None:
-    """``target`` becomes a copy of ``source``; an interruption leaves the old or the new copy whole."""
-    staging = target.with_name(target.name + ".new")
-    if staging.exists():
-        shutil.rmtree(staging)
-    shutil.copytree(source, staging)
+def _move_dir(source: Path, target: Path) -> None:
+    """``source`` becomes ``target`` (renamed, on one file system); the old ``target`` goes after."""
     old = target.with_name(target.name + ".old")
+    if old.exists():
+        shutil.rmtree(old)
     if target.exists():
         target.rename(old)
-    staging.rename(target)
+    source.rename(target)
     if old.exists():
         shutil.rmtree(old)
 

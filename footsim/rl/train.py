@@ -23,7 +23,6 @@ from footsim.env import OUTCOMES, make_env
 from footsim.rl.common import (
     CHECKPOINT_DIR,
     MODEL_FILE,
-    VECNORM_FILE,
     learning_rate_schedule,
     load_run_config,
     policy_class,
@@ -31,6 +30,7 @@ from footsim.rl.common import (
     save_config,
     validate_train_config,
     write_json,
+    write_policy,
 )
 from footsim.rl.evaluate import evaluate_run
 from footsim.rl.selection import Selector, make_selection_callback, select_config, validate_select
@@ -259,10 +259,7 @@ def train(cfg: DictConfig, run_dir: Path) -> dict:
             print(f"interrupted: checkpoint saved; continue with footsim-train resume={run_dir}", flush=True)
             raise SystemExit(130)  # the shell's code for Ctrl-C
     wall = time.time() - started
-    atomic_save(model.save, run_dir / MODEL_FILE, ".zip")
-    vec_normalize = model.get_vec_normalize_env()
-    if isinstance(vec_normalize, VecNormalize):
-        atomic_save(vec_normalize.save, run_dir / VECNORM_FILE, ".pkl")
+    write_policy(model, run_dir)
     save_checkpoint(model, run_dir)
     venv.close()
     info: dict[str, Any] = {
