@@ -129,6 +129,7 @@ def test_a_run_config_in_the_old_keys_evaluates_unchanged():
         "obstacle": 0.0,
         "continuity": 0.2,
         "stability": 0.0,
+        "contact": 0.0,
     }
     assert new.task.reward.stability.params.scale == 0.3
     assert fconf.upgrade_run_config(new) is new  # today's keys: unchanged

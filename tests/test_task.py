@@ -49,7 +49,8 @@ def test_weight_sets_sum_to_one_and_terms_in_unit_interval():
         "obstacle": 0.0,
         "continuity": 0.2,
         "stability": 0.0,
-    }  # thesis 5.5
+        "contact": 0.0,
+    }  # thesis 5.5, and the 3D options off
     assert sum(_weights("nav").values()) == pytest.approx(1)
     assert sum(_weights("nav_obstacles").values()) == pytest.approx(1)
     rng = np.random.default_rng(0)

@@ -127,3 +127,35 @@ def test_env_with_path_hint_runs_and_checks_pass():
     env.close()
     with pytest.raises(ValueError, match="task.path_hint"):
         fconf.build_task({"name": "nav", "path_hint": 1})
+
+
+def test_contact_term_pays_only_for_steps_without_an_obstacle_contact():
+    """The same MuJoCo episode (walking into an obstacle) with the contact term at weight 0 and 0.5:
+    the rewards differ by 0.5 on the steps without a contact and by 0 on those with one."""
+    pytest.importorskip("mujoco")
+    from footsim.scene import Obstacle
+
+    blocked = Scene(goal=Pose2D(2.0, 0.0, 0.0), obstacles=(Obstacle(0.35, 0.0, 0.15),))
+    forward = np.array([0.5, 0.0, 0.0, 0.5, 0.0, 0.0], dtype=np.float32)
+
+    def episode(weight):
+        task = fconf.load_preset("task", "nav_obstacles")
+        task["reward"]["contact"] = {"weight": weight}
+        env = FootstepEnv(backend="mujoco", task=dict(task, max_steps=4))
+        try:
+            env.reset(seed=0, options={"scene": blocked})
+            steps = [env.step(forward) for _ in range(4)]
+        finally:
+            env.close()
+        return [(reward, info["collided"], info["reward_terms"]["contact"]) for _, reward, _, _, info in steps]
+
+    off, on = episode(0.0), episode(0.5)
+    assert [c for _, c, _ in off] == [c for _, c, _ in on]  # the weight changes no physics
+    assert any(c for _, c, _ in on) and not all(c for _, c, _ in on)
+    for (r_off, collided, _), (r_on, _, value) in zip(off, on):
+        assert value == (0.0 if collided else 1.0)
+        assert r_on - r_off == pytest.approx(0.0 if collided else 0.5)
+    scene = Scene(goal=Pose2D(1.0, 0.0, 0.0))
+    a = [0.0] * 6
+    assert "contact" not in nav.reward_terms(Pose2D(), scene, a, a)  # only when the contact is given
+    assert nav.reward_terms(Pose2D(), scene, a, a, collided=True)["contact"] == 0.0

@@ -13,6 +13,7 @@ import math
 import struct
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -31,8 +32,9 @@ from footsim.tasks.terms import (
     termination_term,
 )
 
-#: The thesis 5.5 reward without obstacles (conf/task/nav.yaml), and "stability" (3D option:
-#: exp(-max trunk tilt / scale), weight 0 = off); the order is the order of the weighted sum.
+#: The thesis 5.5 reward without obstacles (conf/task/nav.yaml), and the 3D options "stability"
+#: (exp(-max trunk tilt / scale)) and "contact" (1 without an obstacle contact), weight 0 = off;
+#: the order is the order of the weighted sum.
 DEFAULT_REWARD: dict[str, dict[str, Any]] = {
     "distance": {"weight": 0.3},
     "angle": {"weight": 0.3},
@@ -40,6 +42,7 @@ DEFAULT_REWARD: dict[str, dict[str, Any]] = {
     "obstacle": {"weight": 0.0},
     "continuity": {"weight": 0.2},
     "stability": {"weight": 0.0, "params": {"scale": 0.2}},
+    "contact": {"weight": 0.0},
 }
 #: Outcomes that end an episode, highest priority first; a step that ends none of them and
 #: reaches ``max_steps`` is truncated with outcome "timeout".
@@ -115,7 +118,7 @@ class NavTaskConfig:
         # a weighted reward term needs the backend's trunk tilt, the terms computed each step (a
         # term needing the tilt only when the task uses it), and the ray block's directions and miss value.
         uses_tilt = bool(self.observe_imu or any(t.weight > 0.0 and "tilt" in t.needs for t in rewards))
-        available = {"tilt"} if uses_tilt else set()
+        available = {"tilt", "contact"} if uses_tilt else {"contact"}
         object.__setattr__(self, "uses_tilt", uses_tilt)
         object.__setattr__(self, "reward_terms", tuple(t for t in rewards if t.needs <= available))
         object.__setattr__(self, "termination_terms", terminations)
@@ -277,6 +280,13 @@ def stability(step: StepContext, scale: float) -> float:
     return math.exp(-abs(step.max_tilt) / scale)
 
 
+@reward_term(needs=("contact",))
+def contact(step: StepContext) -> float:
+    """1 for a step without an obstacle or ball contact, else 0: a contact penalty for 3D, where a
+    contact does not end the episode (option: ``task.reward.contact.weight=W``; weight 0 = off)."""
+    return 0.0 if step.result.collided else 1.0
+
+
 def _continuity(action, previous_action) -> float:
     """mean(exp(-3 |a(t) - a(t-1)|)) over the action components (plain floats: this is hot)."""
     a = action.tolist() if isinstance(action, np.ndarray) else action
@@ -345,9 +355,11 @@ def reward_terms(
     max_tilt: float | None = None,
     arrays: tuple[np.ndarray, np.ndarray] | None = None,
     config: NavTaskConfig | None = None,
+    collided: bool | None = None,
 ) -> dict[str, float]:
     """The values of ``config``'s reward terms (default: the thesis's five and "stability") at one
-    step, outside an env; "stability" (or any term needing the tilt) only with ``max_tilt``.
+    step, outside an env; "stability" (or any term needing the tilt) only with ``max_tilt``, a
+    term needing the contact report ("contact") only with ``collided``.
 
     ``features`` may pass ``goal_features(pose, scene.goal)``, ``arrays`` the episode's
     :func:`scene_arrays`; the actions may be arrays or lists of 6 floats.
@@ -358,7 +370,9 @@ def reward_terms(
     step.distance, step.alpha, step.beta = features if features is not None else goal_features(pose, scene.goal)
     step.arrays = arrays if arrays is not None else scene_arrays(scene)
     step.max_tilt = max_tilt
-    return {t.name: t.call(step) for t in reward_table(config.reward) if max_tilt is not None or "tilt" not in t.needs}
+    step.result = SimpleNamespace(collided=collided)
+    given = {name for name, value in (("tilt", max_tilt), ("contact", collided)) if value is not None}
+    return {t.name: t.call(step) for t in reward_table(config.reward) if t.needs <= given}
 
 
 def is_success(

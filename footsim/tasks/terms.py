@@ -32,8 +32,9 @@ if TYPE_CHECKING:
     from footsim.scene import Scene
 
 #: What a term may need beyond the pose and actions: "tilt" is the backend's trunk tilt, which the
-#: task asks for only when a weighted term or the observation uses it.
-REQUIREMENTS = frozenset({"tilt"})
+#: task asks for only when a weighted term or the observation uses it; "contact" is the backend's
+#: report of an obstacle or ball contact during the step (``StepResult.collided``).
+REQUIREMENTS = frozenset({"tilt", "contact"})
 
 
 class StepContext:
