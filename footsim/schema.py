@@ -129,23 +129,6 @@ class RobotConfig:
 
 
 @dataclass
-class RewardTermConfig:
-    """One reward term: ``weight · func(step, **params)`` (``footsim.tasks.terms``)."""
-
-    weight: float = 0.0
-    params: Dict[str, Any] = field(default_factory=dict)
-    func: Optional[str] = None  # "package.module:function"; None: the registered term of the entry's name
-
-
-@dataclass
-class TerminationTermConfig:
-    """One termination term: ``func(step, **params) -> bool`` (``footsim.tasks.terms``)."""
-
-    params: Dict[str, Any] = field(default_factory=dict)
-    func: Optional[str] = None
-
-
-@dataclass
 class ScenesConfig:
     """Scene sampling (``footsim.tasks.scenes.SceneSampler``, thesis 5.1)."""
 
@@ -174,8 +157,12 @@ class TaskConfig:
     n_rays: int = MISSING
     ray_range: float = MISSING
     ray_scale: float = MISSING
-    reward: Dict[str, RewardTermConfig] = MISSING
-    terminations: Dict[str, Optional[TerminationTermConfig]] = MISSING
+    # Term tables (footsim.tasks.terms): name -> {weight, params, func} / name -> {params, func} or
+    # null.  The values are untyped so that `+task.reward.NAME={weight: W, func: ...}` can add a term
+    # on the command line (OmegaConf cannot add a dict to a Dict[str, <dataclass>]); the task checks
+    # each entry's keys and types when it is built (footsim.tasks.terms.reward_table).
+    reward: Dict[str, Any] = MISSING
+    terminations: Dict[str, Any] = MISSING
     fall_threshold: float = MISSING
     collision_ends_episode: Optional[bool] = MISSING
     observe_imu: bool = MISSING

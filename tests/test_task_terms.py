@@ -11,7 +11,14 @@ from footsim.env import FootstepEnv
 from footsim.geometry import Pose2D
 from footsim.scene import Obstacle, Scene
 from footsim.tasks.nav import NavTask, NavTaskConfig
-from footsim.tasks.terms import REWARD_TERMS, TERMINATION_TERMS, reward_table, reward_term, termination_table
+from footsim.tasks.terms import (
+    REWARD_TERMS,
+    TERMINATION_TERMS,
+    StepContext,
+    reward_table,
+    reward_term,
+    termination_table,
+)
 
 
 def lateral_offset(step, scale: float) -> float:
@@ -99,6 +106,22 @@ def test_a_user_reward_term_is_one_function_and_one_config_entry():
     finally:
         env.close()
         plain.close()
+
+
+def test_a_user_reward_term_can_be_added_on_the_command_line():
+    """``+task.reward.NAME={...}`` composes (the term tables are untyped for this) and the task
+    resolves the user's function; a misspelt key in an entry is named when the task is built."""
+    override = f"+task.reward.lateral={{weight:0.5,func:'{__name__}:lateral_offset',params:{{scale:0.25}}}}"
+    cfg = fconf.compose("config", ["task=nav", override])
+    _, config = fconf.build_task(fconf.to_plain(cfg.task))
+    lateral = config.reward_terms[-1]
+    assert (lateral.name, lateral.weight) == ("lateral", 0.5)
+    step = StepContext(config)
+    step.pose = Pose2D(0.0, 0.1, 0.0)
+    assert lateral.call(step) == pytest.approx(math.exp(-0.1 / 0.25))  # hand-computed
+    cfg = fconf.compose("config", ["task=nav", "+task.reward.distance.wieght=1"])
+    with pytest.raises(ValueError, match=r"task.reward.distance: unknown key\(s\) \['wieght'\]"):
+        fconf.build_task(fconf.to_plain(cfg.task))
 
 
 def test_a_user_term_needing_the_tilt_makes_the_task_ask_for_it():
