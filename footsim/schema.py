@@ -170,7 +170,7 @@ class TaskConfig:
     path_hint: bool = MISSING
     path_hint_lookahead: float = MISSING
     path_hint_clearance: float = MISSING
-    success_bonus: float = MISSING
+    success_bonus: Optional[float] = MISSING
     scenes: ScenesConfig = MISSING
 
 

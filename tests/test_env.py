@@ -7,6 +7,7 @@ from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import footsim  # noqa: F401  (registers the env)
+from footsim.config import load_preset
 from footsim.env import FootstepEnv
 from footsim.geometry import Pose2D
 from footsim.scene import Obstacle, Scene
@@ -26,7 +27,7 @@ def test_info_keys_and_spaces():
     for key in ("pose", "pose_estimate", "outcome", "time_s", "reward_terms"):
         assert key in info
     obs, r, term, trunc, info = env.step(np.zeros(6))
-    assert set(info["reward_terms"]) == {"distance", "angle", "orientation", "obstacle", "continuity"}
+    assert set(info["reward_terms"]) == {"distance", "angle", "orientation", "obstacle", "continuity", "contact"}
     assert info["time_s"] == pytest.approx(1 / 1.9633)
     assert not np.allclose(info["pose"], info["pose_estimate"])  # noise is applied
 
@@ -78,6 +79,14 @@ def test_success_adds_the_remaining_steps():
     assert info["outcome"] == "success" and r == pytest.approx(base + 2.5 * 99.0)
     with pytest.raises(ValueError, match="success_bonus"):
         FootstepEnv(task={"name": "nav", "success_bonus": -1.0})
+    # null (the preset's): the maximum step reward, here 1 + 0.5 with the contact term weighted 0.5
+    task = load_preset("task", "nav")
+    task["reward"]["contact"] = {"weight": 0.5}
+    assert task["success_bonus"] is None
+    env = FootstepEnv(task=task)
+    env.reset(seed=0, options={"scene": Scene(Pose2D(0.234, 0.0, 0.0))})
+    obs, r, term, trunc, info = env.step(np.array([1, 0, 0, 1, 0, 0.0]))
+    assert info["outcome"] == "success" and r == pytest.approx(base + 0.5 + 1.5 * 99.0)
 
 
 def test_timeout_after_100_double_steps():

@@ -78,7 +78,10 @@ class NavTaskConfig:
     path_hint: bool = False  # append sin, cos of the bearing to a point on a global grid path (thesis ch. 9)
     path_hint_lookahead: float = 0.5  # [m] along the path past its point closest to the believed pose
     path_hint_clearance: float = 0.2  # [m] inflation of the obstacles for the path (footprint + margin)
-    success_bonus: float = 1.0  # reward per remaining step on success (thesis: 1, the maximum step reward)
+    #: reward per remaining step on success; None: the maximum step reward, the sum of the reward
+    #: weights (the thesis's 1): with a term added beside the thesis's five, a smaller bonus would
+    #: make waiting pay more than arriving
+    success_bonus: float | None = None
     # Derived in __post_init__ (not constructor arguments):
     uses_tilt: bool = field(init=False, repr=False, compare=False)
     reward_terms: tuple[RewardTerm, ...] = field(init=False, repr=False, compare=False)
@@ -100,8 +103,6 @@ class NavTaskConfig:
             value = getattr(self, key)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"task.{key} must be a positive number, got {value!r}")
-        if not (math.isfinite(self.success_bonus) and self.success_bonus >= 0):
-            raise ValueError(f"task.success_bonus must be >= 0, got {self.success_bonus!r}")
         if int(self.max_steps) <= 0:
             raise ValueError(f"task.max_steps must be > 0, got {self.max_steps!r}")
         if int(self.n_rays) <= 0:
@@ -113,6 +114,12 @@ class NavTaskConfig:
                 f"task.collision_ends_episode must be true, false or null, got {self.collision_ends_episode!r}"
             )
         rewards = reward_table(self.reward)
+        bonus = self.success_bonus
+        if bonus is None:  # every registered term lies in [0, 1]
+            bonus = math.fsum(t.weight for t in rewards)
+        if not (math.isfinite(bonus) and bonus >= 0):
+            raise ValueError(f"task.success_bonus must be >= 0 or null, got {bonus!r}")
+        object.__setattr__(self, "success_bonus", bonus)
         terminations = termination_table(self.terminations)
         # Derived once (the config is frozen; the task asks every step): whether the observation or
         # a weighted reward term needs the backend's trunk tilt, the terms computed each step (a
@@ -337,6 +344,7 @@ def collision(step: StepContext) -> bool:
 def _success_bonus(reward: float, step: StepContext) -> float:
     """The rest of the episode at the maximum step reward (``success_bonus`` per step; thesis: 1)."""
     config = step.config
+    assert config.success_bonus is not None, "NavTaskConfig resolves a null bonus"
     return reward + config.success_bonus * float(config.max_steps - step.steps)
 
 
