@@ -125,7 +125,7 @@ class NavTaskConfig:
         # a weighted reward term needs the backend's trunk tilt, the terms computed each step (a
         # term needing the tilt only when the task uses it), and the ray block's directions and miss value.
         uses_tilt = bool(self.observe_imu or any(t.weight > 0.0 and "tilt" in t.needs for t in rewards))
-        available = {"tilt", "contact"} if uses_tilt else {"contact"}
+        available = {"contact"} | ({"tilt"} if uses_tilt else set())  # every backend reports contacts
         object.__setattr__(self, "uses_tilt", uses_tilt)
         object.__setattr__(self, "reward_terms", tuple(t for t in rewards if t.needs <= available))
         object.__setattr__(self, "termination_terms", terminations)
@@ -365,7 +365,7 @@ def reward_terms(
     config: NavTaskConfig | None = None,
     collided: bool | None = None,
 ) -> dict[str, float]:
-    """The values of ``config``'s reward terms (default: the thesis's five and "stability") at one
+    """The values of ``config``'s reward terms (default: the thesis's five, "stability" and "contact") at one
     step, outside an env; "stability" (or any term needing the tilt) only with ``max_tilt``, a
     term needing the contact report ("contact") only with ``collided``.
 
