@@ -153,6 +153,38 @@ def test_obstacle_free_parent_seeds_an_obstacle_run_with_zero_ray_weights(tmp_pa
     np.testing.assert_allclose(child.predict(rays_changed, deterministic=True)[0], expected, atol=1e-6)
 
 
+def test_normalization_statistics_widen_with_the_observation(tmp_path):
+    """A parent that normalizes its 17-D observation seeds a 53-D child that normalizes too: the
+    parent's statistics cover the first 17 inputs, the rays get mean 0 / variance 1, and the child's
+    normalized observation and action equal the parent's."""
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    from footsim.rl.transfer import init_from_run
+
+    parent_venv = VecNormalize(DummyVecEnv([FootstepEnv]), norm_obs=True, norm_reward=False)
+    parent = PPO("MlpPolicy", parent_venv, n_steps=64, batch_size=64, n_epochs=1, device="cpu", seed=0)
+    parent.learn(64)  # the running statistics move away from (0, 1)
+    parent.save(tmp_path / "model.zip")
+    parent_venv.save(tmp_path / "vecnormalize.pkl")
+    (tmp_path / "config.yaml").write_text("backend: {name: pymunk}\ntask: {name: nav}\n")
+    child_venv = VecNormalize(DummyVecEnv([lambda: FootstepEnv(obstacles=True)]), norm_obs=True, norm_reward=False)
+    child = PPO("MlpPolicy", child_venv, device="cpu", seed=1)
+    record = init_from_run(child, tmp_path)
+    assert record["copied_obs_normalization"] and record["observation_expanded"] == "17 -> 53"
+
+    rms = child_venv.obs_rms
+    np.testing.assert_array_equal(rms.mean[:17], parent_venv.obs_rms.mean)
+    np.testing.assert_array_equal(rms.var[:17], parent_venv.obs_rms.var)
+    assert np.all(rms.mean[17:] == 0.0) and np.all(rms.var[17:] == 1.0)
+    assert not np.allclose(parent_venv.obs_rms.var, 1.0)  # the first block really was rescaled
+    obs, _ = FootstepEnv(obstacles=True).reset(seed=0)
+    child_venv.training = parent_venv.training = False
+    norm_child, norm_parent = child_venv.normalize_obs(obs), parent_venv.normalize_obs(obs[:17])
+    np.testing.assert_allclose(norm_child[:17], norm_parent, rtol=1e-6)
+    expected = parent.predict(norm_parent, deterministic=True)[0]
+    np.testing.assert_allclose(child.predict(norm_child, deterministic=True)[0], expected, atol=1e-6)
+
+
 def test_obstacle_parent_seeds_a_path_hint_run_but_not_an_incompatible_layout(tmp_path):
     """Prefix rule: 53-D (goal+rays) seeds 55-D (goal+rays+hint) with zero hint weights; a parent
     with the IMU block (56-D) cannot seed a larger goal+rays+hint run (59-D), whose blocks differ."""

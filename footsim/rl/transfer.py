@@ -5,8 +5,8 @@ normalization statistics when both runs normalize observations.  The backend may
 that is the point (2D → 3D, MuJoCo → PyBullet) — but the action space, the action
 distribution and the network shapes must match.  The observation may grow when the parent's
 observation blocks (``NavTaskConfig.observation_layout``: goal and actions 17, rays, IMU 3,
-path hint 2) begin the child's: the new inputs start with zero weights, so the child begins as
-the parent's policy.  A run without obstacles (17-D) seeds one with obstacles (53-D): a
+path hint 2) begin the child's: the new inputs start with zero weights (and, with observation
+normalization, mean 0 and variance 1), so the child begins as the parent's policy.  A run without obstacles (17-D) seeds one with obstacles (53-D): a
 curriculum that avoids the "stand still, never collide" local optimum of the obstacle task.
 A 2D policy seeds a 3D run that observes its trunk tilt (17 → 20), an obstacle run one with the
 global-path hint (53 → 55).
@@ -14,8 +14,11 @@ global-path hint (53 → 55).
 
 from __future__ import annotations
 
+import copy
 import pickle
 from pathlib import Path
+
+import numpy as np
 
 from footsim.rl.common import MODEL_FILE, VECNORM_FILE, load_run_config
 from footsim.tasks.nav import observation_layout
@@ -87,7 +90,7 @@ def init_from_run(model, parent_dir: str | Path, task=None) -> dict:
         with open(stats_path, "rb") as fh:
             stats = pickle.load(fh)
         if getattr(stats, "norm_obs", False):
-            venv.obs_rms = stats.obs_rms
+            venv.obs_rms = _widen_obs_rms(stats.obs_rms, ours[0]) if expand else stats.obs_rms
             copied_stats = True
     return {
         "init_from": str(parent_dir),
@@ -134,6 +137,17 @@ def _layout(task) -> tuple[tuple[str, int], ...] | None:
 
 def _names(layout) -> str:
     return "unknown" if layout is None else "+".join(name for name, _ in layout)
+
+
+def _widen_obs_rms(rms, size: int):
+    """The parent's observation statistics for a larger observation: the new inputs get mean 0 and
+    variance 1, so normalization passes them through unchanged until training updates them (their
+    input weights start at zero, so the child still begins as the parent's policy)."""
+    widened = copy.deepcopy(rms)
+    extra = size - rms.mean.shape[0]
+    widened.mean = np.concatenate([rms.mean, np.zeros(extra, dtype=rms.mean.dtype)])
+    widened.var = np.concatenate([rms.var, np.ones(extra, dtype=rms.var.dtype)])
+    return widened
 
 
 def _widen_first_layers(parent_state: dict, child_state: dict) -> dict:
