@@ -583,6 +583,34 @@ thesis:
         rp.load_plan(_plan(tmp_path, body.replace("reaches: scratch", "reaches: nope")))
 
 
+def test_thesis_table_states_each_target_with_its_figure_and_lists_what_was_tried_below(tmp_path):
+    body = (
+        BASE
+        + """
+thesis:
+  - question: Obstacle-free
+    thesis: success 1.0
+    figures:
+      - {label: "success", condition: nav, metric: success, target: ">= 0.99"}
+      - {label: "fall", condition: nav, metric: fall, target: "<= 0.01"}
+    tried: [first attempt, second attempt]
+"""
+    )
+    plan = rp.load_plan(_plan(tmp_path, body))
+    cstats = {
+        ("nav", "standard", "policy", "policy", "success"): {"mean": "0.987", "ci_low": "0.97", "ci_high": "1.0"},
+        ("nav", "standard", "policy", "policy", "fall"): {"mean": "0.01", "ci_low": "0.0", "ci_high": "0.03"},
+    }
+    lines = rp.thesis_table(plan, cstats, tmp_path)
+    row = next(line for line in lines if line.startswith("| Obstacle-free |"))
+    # 0.987 < 0.99: not met; 0.01 <= 0.01: met (the boundary counts)
+    assert row.endswith("| nav success ≥ 0.99: not met (0.987); nav fall ≤ 0.01: met (0.010) |")
+    tried = lines[lines.index("### What was tried where a target is not met") :]
+    assert tried[2:6] == ["**Obstacle-free**", "", "* first attempt", "* second attempt"]
+    with pytest.raises(rp.PlanError, match=r"thesis\[0\]\.tried: expected a text or a list of texts"):
+        rp.load_plan(_plan(tmp_path, body.replace("[first attempt, second attempt]", "{a: 1}")))
+
+
 def test_rows_the_plan_no_longer_has_are_dropped(tmp_path):
     plan = rp.load_plan(_plan(tmp_path, BASE + MATRIX))
     rows = [

@@ -280,6 +280,11 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
             shown(c, f"tables[{i}].conditions")
     thesis = tuple(raw.get("thesis") or ())
     for i, row in enumerate(thesis):
+        tried = row.get("tried")
+        if tried is not None and not (
+            isinstance(tried, str) or (isinstance(tried, list) and all(isinstance(t, str) for t in tried))
+        ):
+            raise PlanError(f"{path}: thesis[{i}].tried: expected a text or a list of texts, got {tried!r}")
         for j, fig in enumerate(need(row, "figures", list, f"thesis[{i}].")):
             where = f"thesis[{i}].figures[{j}]."
             for key in ("condition", "minus", "reaches"):
@@ -1153,33 +1158,63 @@ def figure_value(cstats: dict, fig: dict, plan: Plan | None = None, root: Path |
     return value, text
 
 
+#: How a thesis-table target names its metric.
+TARGET_WORDS = {
+    "success": "success",
+    "fall": "fall",
+    "collision": "collision",
+    "unsafe": "falls + collisions",
+    "timeout": "timeout",
+    "success_time_mean": "success time",
+    "success_steps_mean": "double steps",
+}
+
+
+def target_verdict(fig: dict, value: float) -> str:
+    """``"<condition> <metric> <op> <limit>: met|not met (<value>)"`` for a figure with a target."""
+    op, limit = parse_target(fig["target"])
+    subject = TARGET_WORDS.get(fig["metric"], fig["metric"])
+    if fig.get("ratio_to"):
+        subject = f"{subject} / {fig['ratio_to']}'s"
+    if fig.get("minus"):
+        subject = f"{subject} change from {fig['minus']}"
+    if math.isnan(value):
+        verdict = "no data yet"
+    else:
+        met = value >= limit if op == ">=" else value <= limit
+        digits = 2 if fig.get("ratio_to") or fig["metric"] in ("success_time_mean", "success_steps_mean") else 3
+        verdict = f"{'met' if met else 'not met'} ({value:{'+' if fig.get('minus') else ''}.{digits}f})"
+    return f"{fig['condition']} {subject} {op.replace('>=', '≥').replace('<=', '≤')} {limit:g}: {verdict}"
+
+
 def thesis_table(plan: Plan, cstats: dict, root: Path) -> list[str]:
     if not plan.thesis:
         return []
     lines = [
         "## The thesis side by side",
         "",
-        "footsim: mean over seeds on the standard scenes [95 % bootstrap interval].",
+        "footsim: mean over seeds on the standard scenes [95 % bootstrap interval]. Target: each target,",
+        "met or not, with footsim's figure; where a row's target is not met, what was tried is listed",
+        "below the table.",
         "",
         "| Question | Thesis | footsim | Target |",
         "|---|---|---|---|",
     ]
+    tried = []
     for row in plan.thesis:
         figures, targets = [], []
         for fig in row["figures"]:
             value, text = figure_value(cstats, fig, plan, root)
             figures.append(f"{fig['label']} {text}")
             if fig.get("target"):
-                op, limit = parse_target(fig["target"])
-                if math.isnan(value):
-                    verdict = "no data yet"
-                else:
-                    verdict = "met" if (value >= limit if op == ">=" else value <= limit) else "not met"
-                targets.append(f"{fig['label']} {op.replace('>=', '≥').replace('<=', '≤')} {limit:g}: {verdict}")
-        if row.get("tried"):  # what was tried for a target not reached (the plan's own words)
-            targets.append(f"tried: {row['tried']}")
+                targets.append(target_verdict(fig, value))
+        if row.get("tried"):  # the plan's own words, one item per attempt
+            items = [row["tried"]] if isinstance(row["tried"], str) else row["tried"]
+            tried += [f"**{row['question']}**", "", *(f"* {item}" for item in items), ""]
         lines.append(f"| {row['question']} | {row['thesis']} | {'; '.join(figures)} | {'; '.join(targets) or '—'} |")
     lines.append("")
+    if tried:
+        lines += ["### What was tried where a target is not met", "", *tried]
     return lines
 
 

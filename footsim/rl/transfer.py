@@ -6,8 +6,9 @@ that is the point (2D → 3D, MuJoCo → PyBullet) — but the action space, the
 distribution and the network shapes must match.  The observation may grow when the parent's
 observation blocks (``NavTaskConfig.observation_layout``: goal and actions 17, rays, IMU 3,
 path hint 2) begin the child's: the new inputs start with zero weights (and, with observation
-normalization, mean 0 and variance 1), so the child begins as the parent's policy.  A run without obstacles (17-D) seeds one with obstacles (53-D): a
-curriculum that avoids the "stand still, never collide" local optimum of the obstacle task.
+normalization, mean 0 and variance 1), so the child begins as the parent's policy.  A run
+without obstacles (17-D) seeds one with obstacles (53-D): a curriculum that avoids the "stand
+still, never collide" local optimum of the obstacle task.
 A 2D policy seeds a 3D run that observes its trunk tilt (17 → 20), an obstacle run one with the
 global-path hint (53 → 55).
 """
