@@ -300,3 +300,23 @@ def test_obstacle_inflation_widens_obstacles_in_the_physics_only():
     np.testing.assert_array_equal(obs, obs_inflated)
     with pytest.raises(ValueError, match="obstacle_inflation"):
         FootstepEnv(backend={"name": "mujoco", "obstacle_inflation": -0.1}, obstacles=True)
+
+
+def test_a_push_in_the_first_double_step_moves_the_robot_in_proportion_and_is_cleared(backend):
+    """``run_sequence(push=F)``: F on the torso during the first double step, cleared after it.  A
+    zero push changes nothing (the simulation is deterministic); small pushes move the final pose,
+    a four times larger push (within the linear response, no fall) about four times as far."""
+    from footsim.calibration.walkcheck import Sequence, run_sequence
+
+    in_place = Sequence("in place", np.zeros((3, 6)), "translation")
+    plain = run_sequence(backend, in_place)["pose"]
+    zero = run_sequence(backend, in_place, push=np.zeros(3))["pose"]
+    assert (zero.x, zero.y, zero.theta) == (plain.x, plain.y, plain.theta)
+    moved = []
+    for force in (0.5, 2.0):
+        pushed = run_sequence(backend, in_place, push=np.array([force, 0.0, 0.0]))
+        assert not pushed["fell"]
+        moved.append(abs(pushed["pose"].x - plain.x))
+        _, data = backend.sim.mj_model_data()
+        assert not data.xfrc_applied.any()  # cleared after the first double step
+    assert moved[0] > 1e-3 and 2.0 < moved[1] / moved[0] < 6.0

@@ -12,7 +12,9 @@ executes).  Two kinds of sequence:
 
 Also the cross-backend consistency report (final planar pose differences per backend pair, the 2D
 backend included) and :func:`timestep_convergence`: the required sequences at the physics
-timestep and at a fraction of it (the physics-setting check of ``docs/BACKENDS.md``).
+timestep and at a fraction of it (the physics-setting check of ``docs/BACKENDS.md``), with
+:func:`perturbation_sensitivity`, the same comparison between a run and its twin pushed by a
+negligible force (how close two runs can agree at all).
 """
 
 from __future__ import annotations
@@ -86,12 +88,15 @@ def standard_sequences() -> list[Sequence]:
     return required_sequences() + measured_sequences()
 
 
-def run_sequence(backend, sequence: Sequence, seed: int = 0) -> dict:
-    """Execute a sequence on a backend from the origin in an empty scene."""
+def run_sequence(backend, sequence: Sequence, seed: int = 0, push: np.ndarray | None = None) -> dict:
+    """Execute a sequence on a backend from the origin in an empty scene; ``push`` [N] (world
+    frame): a force on the torso during the first double step (:func:`perturbation_sensitivity`)."""
     start = backend.reset(Scene(goal=Pose2D(100.0, 0.0, 0.0)), np.random.default_rng(seed))
 
     pose, fell, error, steps, total_yaw = start, False, None, 0, 0.0
     for action in sequence.actions:
+        if push is not None and steps in (0, 1):
+            backend.sim.apply_base_force(push if steps == 0 else np.zeros(3))
         result = backend.execute(DoubleStep.from_action(action, backend.robot.step_limits))
         steps += 1
         if result.sim_error is not None:
@@ -231,9 +236,48 @@ def timestep_convergence(
         runs.append({s.name: run_sequence(fine, s) for s in required_sequences()})
     finally:
         fine.close()
+    title = (
+        f"### {backend}: physics_dt {physics_dt * 1000:g} ms vs {physics_dt / divisor * 1000:g} ms "
+        f"(control_dt {control_dt * 1000:g} ms)"
+    )
+    return _compare_runs(runs[0], runs[1], title, f"dt, dt/{divisor}", "converged")
+
+
+def perturbation_sensitivity(
+    backend: str,
+    walk: str | Mapping | None = None,
+    robot: str | Mapping | None = None,
+    backend_overrides: Mapping | None = None,
+    push: float = 1e-4,
+) -> tuple[list[dict], str]:
+    """The floor under :func:`timestep_convergence`: the required sequences at one timestep, once
+    as they are and once with a push of ``push`` newtons along +x on the torso during the first
+    double step (1e-4 N moves the 7.5 kg robot by micrometres), compared as the convergence check
+    compares two timesteps.  Where the pushed twin already ends further apart than the bound, no
+    timestep can pass it: the gap measures how the walk amplifies any small difference (its
+    contact events), not the integration error."""
+    runs = []
+    sim = make_backend(backend, walk, robot, backend_overrides)
+    try:
+        for force in (None, np.array([push, 0.0, 0.0])):
+            runs.append({s.name: run_sequence(sim, s, push=force) for s in required_sequences()})
+        physics_dt = sim.physics_dt
+    finally:
+        sim.close()
+    title = (
+        f"### {backend}: physics_dt {physics_dt * 1000:g} ms, unpushed vs pushed by {push:g} N in the first double step"
+    )
+    return _compare_runs(runs[0], runs[1], title, "unpushed, pushed", "within the bound")
+
+
+def _compare_runs(
+    a_runs: Mapping[str, dict], b_runs: Mapping[str, dict], title: str, pair: str, verdict: str
+) -> tuple[list[dict], str]:
+    """Per required sequence: the final planar poses' distance and heading difference between two
+    runs, whether the outcome changed, and whether they agree within the convergence bound."""
     rows: list[dict[str, Any]] = []
     for s in required_sequences():
-        a, b = runs[0][s.name], runs[1][s.name]
+        a, b = a_runs[s.name], b_runs[s.name]
         fell_a, fell_b = bool(a["fell"] or a["sim_error"]), bool(b["fell"] or b["sim_error"])
         distance = math.hypot(a["pose"].x - b["pose"].x, a["pose"].y - b["pose"].y)
         heading = abs(wrap_angle(a["pose"].theta - b["pose"].theta))
@@ -249,10 +293,9 @@ def timestep_convergence(
             }
         )
     lines = [
-        f"### {backend}: physics_dt {physics_dt * 1000:g} ms vs {physics_dt / divisor * 1000:g} ms "
-        f"(control_dt {control_dt * 1000:g} ms)",
+        title,
         "",
-        f"| sequence | fell (dt, dt/{divisor}) | final position diff [m] | heading diff [deg] | converged |",
+        f"| sequence | fell ({pair}) | final position diff [m] | heading diff [deg] | {verdict} |",
         "|---|---|---|---|---|",
     ]
     for r in rows:
