@@ -546,6 +546,33 @@ def test_a_job_runs_under_its_randomization(small_study):
             env.close()
 
 
+@pytest.mark.slow
+@pytest.mark.xdist_group("tiny_runs")
+def test_a_policy_trained_on_other_scenes_is_evaluated_on_the_task_presets_scenes(small_study, tmp_path):
+    """A zoo policy trained with goals drawn nearer (task.scenes.goal_sigma_xy 0.3) runs the
+    standard set of the thesis sampler: the same scenes as the baseline's."""
+    import shutil
+
+    from omegaconf import OmegaConf
+
+    from footsim.tasks.scenes import sample_scenes
+
+    root, _ = small_study
+    zoo_root = tmp_path / "zoo"
+    shutil.copytree(root / "zoo", zoo_root)
+    cfg = OmegaConf.load(zoo_root / "nav_s0" / "config.yaml")
+    cfg.task.scenes.goal_sigma_xy = 0.3
+    OmegaConf.save(cfg, zoo_root / "nav_s0" / "config.yaml")
+    common = dict(seed=0, backend="pymunk", task="nav", noise="none", scenes_seed=20220101, n_scenes=3)
+    sets = []
+    for kind, name in (("policy", "nav_s0"), ("baseline", "velocity")):
+        env, _ = rp.job_env_and_controller(rp.Job("c", "standard", kind, name, **common), zoo_root)
+        sets.append([(s.goal.x, s.goal.y, s.goal.theta) for s in sample_scenes(env.sampler, 3, 20220101)])
+        assert env.sampler.goal_sigma_xy == 1.0
+        env.close()
+    assert sets[0] == sets[1]
+
+
 def test_steps_to_reach_reads_the_zoo_learning_curves(tmp_path):
     """The fine-tune's mean training curve first reaches the from-scratch run's final success rate at
     a hand-interpolated step."""

@@ -600,6 +600,8 @@ def job_env_and_controller(job: Job, root: str | Path) -> tuple[Any, Any]:
         if (saved.get("randomization") or {}).get("name", "none") != job.randomization:
             asked["randomization"] = job.randomization
         run_cfg = eval_run_config(run_dir, OmegaConf.create(asked))
+        # The scene sets are the task preset's (the thesis sampler), whatever a policy trained on.
+        run_cfg.task.scenes = fconf.load_preset("task", job.task)["scenes"]
         return make_env(run_cfg), PolicyController(LoadedPolicy(run_dir, beta_action=job.beta_action))
     env = FootstepEnv(backend=job.backend, task=job.task, noise=job.noise, randomization=job.randomization)
     controller_cfg = fconf.to_plain(fconf.compose("eval", [f"controller={job.name}"]).controller)
