@@ -40,7 +40,7 @@ def backend():
 
 @pytest.mark.parametrize("direction", [1, -1])
 def test_max_turns_do_not_fall_and_turn_as_commanded(backend, direction):
-    """Max turns fell on PyBullet until it got 60 solver iterations (conf/backend/pybullet.yaml):
+    """Max turns are where a weak contact solver fails first (the stance foot slips):
     8 double steps of max turn must not fall and must turn within the walk check's 25 % of the
     planar footstep geometry's yaw (the 2D backend executing the same actions)."""
     from footsim.calibration.walkcheck import Sequence, run_sequence

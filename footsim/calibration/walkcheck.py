@@ -243,6 +243,27 @@ def timestep_convergence(
     return _compare_runs(runs[0], runs[1], title, f"dt, dt/{divisor}", "converged")
 
 
+def compare_settings(
+    backend: str,
+    first: Mapping,
+    second: Mapping,
+    walk: str | Mapping | None = None,
+    robot: str | Mapping | None = None,
+) -> tuple[list[dict], str]:
+    """The required sequences under two sets of backend overrides (e.g. solver iterations 10 and
+    50), compared as :func:`timestep_convergence` compares two timesteps."""
+    runs = []
+    for overrides in (first, second):
+        sim = make_backend(backend, walk, robot, overrides)
+        try:
+            runs.append({s.name: run_sequence(sim, s) for s in required_sequences()})
+        finally:
+            sim.close()
+    first_label, second_label = (", ".join(f"{k}={v}" for k, v in o.items()) or "defaults" for o in (first, second))
+    title = f"### {backend}: {first_label} vs {second_label}"
+    return _compare_runs(runs[0], runs[1], title, "first, second", "within the bound")
+
+
 def perturbation_sensitivity(
     backend: str,
     walk: str | Mapping | None = None,

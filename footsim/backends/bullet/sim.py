@@ -31,11 +31,12 @@ servo (docs/BACKENDS.md has the measurements).  Bullet's own joint damping is of
 position motor.
 
 Armature.  URDF cannot express the servos' reflected rotor inertia, and without it the leg links
-are tiny (2e-5 to 6e-4 kg m²) under a 3.5 kg torso: Bullet's sequential-impulse solver then needs
-~60 iterations a tick before motor and friction impulses agree (fewer: the stance foot slips and
-the robot falls).  ``armature_scale`` folds the spec's armature, scaled, into the leg links as
-rotor disks (``_add_armature``); at 0.1 the walk needs 10 iterations at 100 Hz instead of 60 at
-240 Hz.  ``motor=servo`` instead drives the joints in torque mode with MuJoCo's servo law.
+are tiny (2e-5 to 6e-4 kg m²) under a 3.5 kg torso, and Bullet's sequential-impulse solver needs
+many iterations a tick before motor and friction impulses agree (fewer: the stance foot slips).
+``armature_scale`` folds the spec's armature, scaled, into the leg links as rotor disks
+(``_add_armature``; 1.0 in FootstepNav-v1).  How many iterations the walk needs to converge is
+measured in docs/BACKENDS.md (PyBullet, "Solver iterations").  ``motor=servo`` instead drives the
+joints in torque mode with MuJoCo's servo law.
 
 Contacts.  Lateral / spinning / rolling friction of the floor and the feet as the Bit-Bots'
 PyBullet setup (FACTS: 1.0 / 0.1 / 0.1).  Obstacles are static cylinders, the ball a static
