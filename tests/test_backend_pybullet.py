@@ -454,3 +454,16 @@ def test_the_state_check_matches_the_full_check():
         assert check()
     finally:
         b.close()
+
+
+def test_compare_settings_finds_no_difference_between_equal_settings_and_the_unconverged_solver():
+    """The same settings twice end in the same poses (the simulation is deterministic); 10 solver
+    iterations against Bullet's default 50 turn the robot differently (docs/BACKENDS.md)."""
+    from footsim.calibration.walkcheck import compare_settings
+
+    same, _ = compare_settings("pybullet", {"solver_iterations": 10}, {"solver_iterations": 10})
+    assert all(r["distance"] == 0.0 and r["heading"] == 0.0 and r["converged"] for r in same)
+    rows, table = compare_settings("pybullet", {"solver_iterations": 10}, {"solver_iterations": 50})
+    turns = [r for r in rows if r["sequence"].startswith("turn")]
+    assert len(turns) == 2 and all(r["heading"] > np.radians(2.0) and not r["converged"] for r in turns)
+    assert table.startswith("### pybullet: solver_iterations=10 vs solver_iterations=50")
