@@ -95,9 +95,12 @@ def run_sequence(backend, sequence: Sequence, seed: int = 0, push: np.ndarray | 
 
     pose, fell, error, steps, total_yaw = start, False, None, 0, 0.0
     for action in sequence.actions:
-        if push is not None and steps in (0, 1):
-            backend.sim.apply_base_force(push if steps == 0 else np.zeros(3))
+        pushed = push is not None and steps == 0
+        if pushed:
+            backend.sim.apply_base_force(push)
         result = backend.execute(DoubleStep.from_action(action, backend.robot.step_limits))
+        if pushed:
+            backend.sim.apply_base_force(np.zeros(3))
         steps += 1
         if result.sim_error is not None:
             error = result.sim_error
@@ -273,7 +276,7 @@ def perturbation_sensitivity(
 ) -> tuple[list[dict], str]:
     """The floor under :func:`timestep_convergence`: the required sequences at one timestep, once
     as they are and once with a push of ``push`` newtons along +x on the torso during the first
-    double step (1e-4 N moves the 7.5 kg robot by micrometres), compared as the convergence check
+    double step (1e-4 N moves the 6.1 kg model by micrometres), compared as the convergence check
     compares two timesteps.  Where the pushed twin already ends further apart than the bound, no
     timestep can pass it: the gap measures how the walk amplifies any small difference (its
     contact events), not the integration error."""
