@@ -225,25 +225,15 @@ def timestep_convergence(
     every sequence walked in both runs ends less than :data:`CONVERGED_POSITION` and
     :data:`CONVERGED_YAW` apart."""
     overrides = dict(backend_overrides or {})
-    base = make_backend(backend, walk, robot, overrides)
-    physics_dt, control_dt = base.physics_dt, base.control_dt
-    runs = []
-    try:
-        runs.append({s.name: run_sequence(base, s) for s in required_sequences()})
-    finally:
-        base.close()
-    fine = make_backend(
+    (coarse,), (physics_dt, control_dt) = _required_runs(backend, walk, robot, overrides)
+    (fine,), _ = _required_runs(
         backend, walk, robot, {**overrides, "physics_dt": physics_dt / divisor, "control_dt": control_dt}
     )
-    try:
-        runs.append({s.name: run_sequence(fine, s) for s in required_sequences()})
-    finally:
-        fine.close()
     title = (
         f"### {backend}: physics_dt {physics_dt * 1000:g} ms vs {physics_dt / divisor * 1000:g} ms "
         f"(control_dt {control_dt * 1000:g} ms)"
     )
-    return _compare_runs(runs[0], runs[1], title, f"dt, dt/{divisor}", "converged")
+    return _compare_runs(coarse, fine, title, f"dt, dt/{divisor}", "converged")
 
 
 def compare_settings(
@@ -255,16 +245,11 @@ def compare_settings(
 ) -> tuple[list[dict], str]:
     """The required sequences under two sets of backend overrides (e.g. solver iterations 10 and
     50), compared as :func:`timestep_convergence` compares two timesteps."""
-    runs = []
-    for overrides in (first, second):
-        sim = make_backend(backend, walk, robot, overrides)
-        try:
-            runs.append({s.name: run_sequence(sim, s) for s in required_sequences()})
-        finally:
-            sim.close()
+    (a,), _ = _required_runs(backend, walk, robot, first)
+    (b,), _ = _required_runs(backend, walk, robot, second)
     first_label, second_label = (", ".join(f"{k}={v}" for k, v in o.items()) or "defaults" for o in (first, second))
     title = f"### {backend}: {first_label} vs {second_label}"
-    return _compare_runs(runs[0], runs[1], title, "first, second", "within the bound")
+    return _compare_runs(a, b, title, "first, second", "within the bound")
 
 
 def perturbation_sensitivity(
@@ -280,18 +265,30 @@ def perturbation_sensitivity(
     compares two timesteps.  Where the pushed twin already ends further apart than the bound, no
     timestep can pass it: the gap measures how the walk amplifies any small difference (its
     contact events), not the integration error."""
-    runs = []
-    sim = make_backend(backend, walk, robot, backend_overrides)
-    try:
-        for force in (None, np.array([push, 0.0, 0.0])):
-            runs.append({s.name: run_sequence(sim, s, push=force) for s in required_sequences()})
-        physics_dt = sim.physics_dt
-    finally:
-        sim.close()
+    (plain, pushed), (physics_dt, _) = _required_runs(
+        backend, walk, robot, backend_overrides, pushes=(None, np.array([push, 0.0, 0.0]))
+    )
     title = (
         f"### {backend}: physics_dt {physics_dt * 1000:g} ms, unpushed vs pushed by {push:g} N in the first double step"
     )
-    return _compare_runs(runs[0], runs[1], title, "unpushed, pushed", "within the bound")
+    return _compare_runs(plain, pushed, title, "unpushed, pushed", "within the bound")
+
+
+def _required_runs(
+    backend: str,
+    walk: str | Mapping | None,
+    robot: str | Mapping | None,
+    overrides: Mapping | None,
+    pushes: tuple[np.ndarray | None, ...] = (None,),
+) -> tuple[list[dict[str, dict]], tuple[float, float]]:
+    """The required sequences on one backend built with ``overrides``, once per push (see
+    :func:`run_sequence`), and that backend's (physics_dt, control_dt)."""
+    sim = make_backend(backend, walk, robot, overrides)
+    try:
+        runs = [{s.name: run_sequence(sim, s, push=push) for s in required_sequences()} for push in pushes]
+        return runs, (sim.physics_dt, sim.control_dt)
+    finally:
+        sim.close()
 
 
 def _compare_runs(
