@@ -464,6 +464,14 @@ def test_a_derived_3d_cell_spreads_its_scenes_over_the_rows_seeds(tmp_path, monk
     with pytest.raises(rp.PlanError, match=r"matrices\[0\]\.n_scenes: 3 scenes cannot be split over the 4 seeds"):
         rp.load_plan(text)
 
+    # a cap per backend: the derived MuJoCo cell takes its own; pymunk is never capped
+    per_backend = rp.load_plan(_plan(tmp_path, BASE + MATRIX.replace("n_scenes: 3", "n_scenes: {mujoco: 2}")))
+    assert per_backend.conditions["obst_on_mujoco_dr_default"].n_scenes == 2
+    assert per_backend.conditions["obst_on_mujoco_dr_default"].split_scenes
+    assert per_backend.conditions["obst_on_pymunk_dr_default"].n_scenes is None
+    with pytest.raises(rp.PlanError, match=r"matrices\[0\]\.n_scenes: \['pybullet'\] are not among"):
+        rp.load_plan(_plan(tmp_path, BASE + MATRIX.replace("n_scenes: 3", "n_scenes: {pybullet: 2}")))
+
 
 @pytest.mark.parametrize(
     ("edit", "message"),

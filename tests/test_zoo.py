@@ -126,6 +126,22 @@ def test_round_trip_add_list_show_eval_and_init_from(tiny_zoo, tmp_path, capsys)
     with pytest.raises(SystemExit, match=r"no zoo entry 'tiny'"):
         zoo_main(["remove", "tiny", f"zoo={copy}"])
 
+    # the child replacing its own parent's entry (a policy trained on under the parent's name) must
+    # name the parent it records, and then records it under that name with the parent's digest and steps
+    replaced = tmp_path / "zoo_replace"
+    shutil.copytree(root, replaced)
+    with pytest.raises(SystemExit, match=r"trained from zoo:tiny, the entry it replaces; give parent_name=NAME"):
+        zoo_main(["add", str(child), "name=tiny", "force=true", "check_scenes=2", f"zoo={replaced}"])
+    assert zoo.verify("tiny", replaced) == [] and zoo.provenance("tiny", replaced) == prov  # left as it was
+    zoo_main(
+        ["add", str(child), "name=tiny", "force=true", "parent_name=tiny-stage", "check_scenes=2", f"zoo={replaced}"]
+    )
+    assert zoo.provenance("tiny", replaced)["parent"] == {**child_prov["parent"], "zoo": "zoo:tiny-stage"}
+    assert zoo.provenance("tiny", replaced)["steps_total"] == 256
+    assert zoo.children("tiny", replaced) == ["tiny-child"]  # not itself
+    with pytest.raises(SystemExit, match=r"parent_name is only for a run trained from the entry it replaces"):
+        zoo_main(["add", str(child), "name=other", "parent_name=x", "check_scenes=2", f"zoo={replaced}"])
+
 
 @pytest.mark.slow
 @pytest.mark.xdist_group("tiny_runs")

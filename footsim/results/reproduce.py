@@ -379,17 +379,30 @@ def _matrix(path: Path, i: int, spec: Any, conditions: dict[str, Condition], set
     randomizations = spec.get("randomization", ["none"])
     if not isinstance(randomizations, list) or not randomizations:
         raise PlanError(f"{where}randomization must be a list of conf/randomization presets, got {randomizations!r}")
-    cap = _scene_cap(spec.get("n_scenes"), f"{where}n_scenes")
+    # n_scenes: one cap for every 3D backend, or a cap per backend (a PyBullet episode costs several
+    # MuJoCo ones at its converged timestep); 2D evaluation is cheap and never capped
+    caps_spec = spec.get("n_scenes")
+    if isinstance(caps_spec, dict):
+        unknown = sorted(set(caps_spec) - set(backends))
+        if unknown:
+            raise PlanError(f"{where}n_scenes: {unknown} are not among the matrix's backends {backends}")
+        caps = {str(b): _scene_cap(v, f"{where}n_scenes.{b}") for b, v in caps_spec.items()}
+    else:
+        cap = _scene_cap(caps_spec, f"{where}n_scenes")
+        caps = {b: cap for b in backends}
     cell_sets = _set_names(spec.get("sets"), sets, f"{where}sets")
     task = str(spec["task"])
     cells = {}
     for label, source in rows.items():
         row = conditions[source]
-        if cap is not None and cap < len(row.seeds):
-            raise PlanError(
-                f"{where}n_scenes: {cap} scenes cannot be split over the {len(row.seeds)} seeds of row {label}"
-            )
+        for backend, cap in caps.items():
+            if cap is not None and cap < len(row.seeds):
+                raise PlanError(
+                    f"{where}n_scenes: {cap} scenes cannot be split over the {len(row.seeds)} seeds of row {label} "
+                    f"({backend})"
+                )
         for backend in backends:
+            cap = None if backend == "pymunk" else caps.get(backend)
             for rand in map(str, randomizations):
                 same = [
                     c.name
@@ -409,10 +422,10 @@ def _matrix(path: Path, i: int, spec: Any, conditions: dict[str, Condition], set
                     task=task,
                     noise=row.noise,
                     policies=source,
-                    n_scenes=None if backend == "pymunk" else cap,  # 2D evaluation is cheap
+                    n_scenes=cap,
                     randomization=rand,
                     sets=cell_sets,
-                    split_scenes=backend != "pymunk" and cap is not None,
+                    split_scenes=cap is not None,
                 )
                 cells[(label, backend, rand)] = name
     return Matrix(

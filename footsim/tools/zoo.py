@@ -4,7 +4,8 @@
 * ``list``: one line per entry (condition, seed, backend, task, noise, steps, recorded success).
 * ``show NAME``: the entry's provenance and evaluation summary.
 * ``add RUN_DIR name=NAME [condition=C] [description=TEXT] [commit=SHA|CHECKOUT] [check_scenes=20]
-  [force=true]``: copy a finished run in (atomically) and record its provenance and check episodes.
+  [force=true [parent_name=P]]``: copy a finished run in (atomically) and record its provenance and
+  check episodes; a run trained from the entry it replaces records that parent as ``zoo:P``.
 * ``remove NAME [keep_children=true]``: take an entry out (refused while another entry records it
   as its parent, unless keep_children=true: a study plan's training stage).
 * ``check [NAME ...]``: file digests and config composition of the entries (all by default); exit 1 on a problem.
@@ -20,7 +21,7 @@ from footsim import zoo
 
 USAGE = (
     "usage: footsim-zoo list | show NAME | add RUN_DIR name=NAME [condition=C] [description=TEXT] "
-    "[commit=SHA|CHECKOUT] [check_scenes=20] [force=true] | remove NAME [keep_children=true] "
+    "[commit=SHA|CHECKOUT] [check_scenes=20] [force=true [parent_name=P]] | remove NAME [keep_children=true] "
     "| check [NAME ...]   (any: zoo=DIR)"
 )
 
@@ -87,7 +88,7 @@ def _bool(key: str, value: str) -> bool:
 
 
 def _add(positional: list[str], options: dict[str, str], root: Path) -> None:
-    allowed = {"name", "condition", "description", "commit", "check_scenes", "force"}
+    allowed = {"name", "condition", "description", "commit", "check_scenes", "force", "parent_name"}
     unknown = sorted(set(options) - allowed)
     if unknown:
         raise SystemExit(f"footsim-zoo add: unknown key(s) {unknown}; keys: {sorted(allowed | {'zoo'})}")
@@ -106,6 +107,7 @@ def _add(positional: list[str], options: dict[str, str], root: Path) -> None:
         commit=options.get("commit"),
         check_scenes=check_scenes,
         force=_bool("force", options.get("force", "false")),
+        parent_name=options.get("parent_name"),
     )
     print(f"added {options['name']} to {root}: {json.dumps(row)}")
     print(f"zoo size: {zoo.total_size(root) / 1e6:.1f} MB")

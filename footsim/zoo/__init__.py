@@ -404,11 +404,15 @@ def add(
     commit: str | None = None,
     check_scenes: int = 20,
     force: bool = False,
+    parent_name: str | None = None,
 ) -> dict:
     """Copy a finished run into the zoo as ``name`` and register it; returns its index row.
 
     The entry is assembled in a temporary directory inside the zoo and moved into place in one
     rename, then the index is rewritten atomically: an interrupted ``add`` leaves the zoo as it was.
+    A run trained from the entry it replaces (``force``) needs ``parent_name``: the name its
+    provenance records for that parent (e.g. the study plan's training-stage entry), since the
+    replaced entry's own name will be the child's.
     """
     from footsim.rl.common import MODEL_FILE, VECNORM_FILE, load_run_config
     from footsim.utils import atomic_write_text
@@ -432,6 +436,21 @@ def add(
     root.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(dir=root, prefix=f".{name}.adding-"))
     try:
+        parent = json.loads((run / "parent.json").read_text()) if (run / "parent.json").is_file() else None
+        parent_model = Path(parent["init_from"]) / "model.zip" if parent and parent.get("init_from") else None
+        # the parent's weights as they are now: a run directory trained over since would give another
+        # digest, and the lineage check (footsim-reproduce) then names the mismatch
+        parent_digest = weights_digest(parent_model) if parent_model is not None and parent_model.is_file() else None
+        parent_zoo = _parent_name(parent.get("init_from"), root, parent_digest) if parent else None
+        if parent_zoo == PREFIX + name:
+            if parent_name is None:
+                raise ZooError(
+                    f"{run} was trained from zoo:{name}, the entry it replaces; give parent_name=NAME, the "
+                    "name its provenance records for that parent (e.g. the study plan's training stage)"
+                )
+            check_name(parent_name)
+        elif parent_name is not None:
+            raise ZooError(f"parent_name is only for a run trained from the entry it replaces (zoo:{name})")
         shutil.copy2(run / "config.yaml", tmp / "config.yaml")
         if (run / VECNORM_FILE).is_file():
             shutil.copy2(run / VECNORM_FILE, tmp / VECNORM_FILE)
@@ -446,12 +465,6 @@ def add(
         if curve is not None:
             atomic_write_text(tmp / CURVE_FILE, curve)
         train_info = json.loads((run / "train_info.json").read_text()) if (run / "train_info.json").is_file() else {}
-        parent = json.loads((run / "parent.json").read_text()) if (run / "parent.json").is_file() else None
-        parent_model = Path(parent["init_from"]) / "model.zip" if parent and parent.get("init_from") else None
-        # the parent's weights as they are now: a run directory trained over since would give another
-        # digest, and the lineage check (footsim-reproduce) then names the mismatch
-        parent_digest = weights_digest(parent_model) if parent_model is not None and parent_model.is_file() else None
-        parent_zoo = _parent_name(parent.get("init_from"), root, parent_digest) if parent else None
         # a run initialised from another starts counting at 0: its own steps; the total adds the
         # parent's (its whole lineage's when the parent is a zoo entry)
         parent_steps = int(parent.get("parent_num_timesteps", 0)) if parent else 0
@@ -479,7 +492,7 @@ def add(
             "parent": None
             if parent is None
             else {
-                "zoo": parent_zoo,
+                "zoo": PREFIX + parent_name if parent_name is not None else parent_zoo,
                 "run": parent.get("init_from"),
                 "backend": parent.get("parent_backend"),
                 "task": parent.get("parent_task"),
