@@ -348,3 +348,26 @@ def test_policy_deterministic_action_is_sb3_predict_bit_for_bit(name):
         got, expected = policy(obs), reference(obs)
         assert got.dtype == expected.dtype and got.shape == expected.shape
         assert np.array_equal(got, expected, equal_nan=True), (obs, got, expected)
+
+
+def test_index_updates_at_once_keep_every_row(tmp_path):
+    """Two ``footsim-zoo add`` at once each rewrite the index: the lock from read to write keeps both
+    rows (each change here holds the index 50 ms, long enough for the others to read it meanwhile)."""
+    import threading
+    import time
+
+    zoo.write_index({"format": 1, "entries": {}}, tmp_path)
+
+    def add_row(i: int) -> None:
+        def change(index: dict) -> None:
+            time.sleep(0.05)
+            index["entries"][f"entry{i}"] = {"seed": i}
+
+        zoo.update_index(tmp_path, change)
+
+    threads = [threading.Thread(target=add_row, args=(i,)) for i in range(6)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert zoo.names(tmp_path) == [f"entry{i}" for i in range(6)]

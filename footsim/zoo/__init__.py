@@ -31,6 +31,7 @@ import re
 import shutil
 import subprocess
 import tempfile
+from collections.abc import Callable
 from importlib import metadata
 from pathlib import Path
 from typing import Any
@@ -84,6 +85,26 @@ def write_index(index: dict, root: Path) -> None:
     from footsim.utils import atomic_write_text
 
     atomic_write_text(root / INDEX_FILE, json.dumps(index, indent=2) + "\n")
+
+
+def update_index(root: Path, change: Callable[[dict], None]) -> None:
+    """Apply ``change`` to the index and rewrite it, holding an exclusive lock on the zoo directory
+    (where the OS has ``fcntl``) from the read to the write: two ``add`` runs at once each keep
+    their row instead of the later write dropping the earlier one's."""
+    fd = os.open(root, os.O_RDONLY)
+    try:
+        try:
+            import fcntl
+
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        except ImportError:  # no advisory locks on this OS: read-modify-write unguarded
+            pass
+        index = load_index(root)
+        change(index)
+        index["entries"] = dict(sorted(index["entries"].items()))
+        write_index(index, root)
+    finally:
+        os.close(fd)  # releases the lock
 
 
 def names(root: Path | None = None) -> list[str]:
@@ -532,9 +553,7 @@ def add(
         "description": description,
         "source_run": str(run),
     }
-    index["entries"][name] = row
-    index["entries"] = dict(sorted(index["entries"].items()))
-    write_index(index, root)
+    update_index(root, lambda index: index["entries"].__setitem__(name, row))
     return row
 
 
@@ -558,9 +577,7 @@ def remove(name: str, root: Path | None = None, keep_children: bool = False) -> 
             f"zoo entry {name!r} is the parent of {', '.join(kids)}; remove those first, or give "
             "keep_children=true to keep them (their provenance keeps its weights digest and steps)"
         )
-    index = load_index(root)
-    index["entries"].pop(name, None)
-    write_index(index, root)
+    update_index(root, lambda index: index["entries"].pop(name, None))
     shutil.rmtree(root / name, ignore_errors=True)
 
 
