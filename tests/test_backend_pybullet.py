@@ -235,29 +235,36 @@ def test_create_reset_close_cycles_do_not_leak(backend):
     assert not any(os.path.exists(p) for p in paths)  # temp URDF files removed
 
 
-def test_obstacle_contact_means_touching_not_merely_near(backend):
+def test_obstacle_contact_means_touching_not_merely_near():
     """An obstacle is moved towards the standing robot in 0.5 mm steps across the first touch:
     ``obstacle_contact`` must agree with Bullet's own closest-point distance (touching or
     penetrating), not with ``getContactPoints`` (which for some shape pairs lists points that are
     still apart within Bullet's contact-breaking threshold)."""
 
-    def placed(x: float) -> float:
-        """The obstacle at ``x``; Bullet's closest-point gap to the robot (0.05 = farther)."""
-        backend.reset(
-            Scene(goal=Pose2D(1.0, 0.0, 0.0), obstacles=(Obstacle(float(x), 0.0, 0.1),)), np.random.default_rng(0)
-        )
-        sim = backend.sim
-        closest = pybullet.getClosestPoints(sim.robot_id, sim.obstacle_ids[0], 0.05, physicsClientId=sim.client)
-        return min((point[8] for point in closest), default=0.05)
+    # The penetrating side needs an obstacle the robot still overlaps after the reset's settle: at
+    # the default 50 solver iterations the settle pushes the robot out of it, at 10 it stays.
+    backend = make_backend("pybullet", backend_overrides={"solver_iterations": 10, "physics_dt": 1 / 240})
+    try:
 
-    touch = next(x for x in np.arange(0.40, 0.05, -0.005) if placed(x) < 0.005)  # first touch, to 5 mm
-    seen = set()
-    for x in np.arange(touch + 0.004, touch - 0.008, -0.0005):
-        gap = placed(x)
-        if abs(gap) > 1e-4:  # skip exact touching, where the two queries may round differently
-            assert backend.sim.obstacle_contact() == (gap < 0.0), (x, gap)
-            seen.add(gap < 0.0)
-    assert seen == {True, False}  # the sweep crossed the first touch
+        def placed(x: float) -> float:
+            """The obstacle at ``x``; Bullet's closest-point gap to the robot (0.05 = farther)."""
+            backend.reset(
+                Scene(goal=Pose2D(1.0, 0.0, 0.0), obstacles=(Obstacle(float(x), 0.0, 0.1),)), np.random.default_rng(0)
+            )
+            sim = backend.sim
+            closest = pybullet.getClosestPoints(sim.robot_id, sim.obstacle_ids[0], 0.05, physicsClientId=sim.client)
+            return min((point[8] for point in closest), default=0.05)
+
+        touch = next(x for x in np.arange(0.40, 0.05, -0.005) if placed(x) < 0.005)  # first touch, to 5 mm
+        seen = set()
+        for x in np.arange(touch + 0.004, touch - 0.008, -0.0005):
+            gap = placed(x)
+            if abs(gap) > 1e-4:  # skip exact touching, where the two queries may round differently
+                assert backend.sim.obstacle_contact() == (gap < 0.0), (x, gap)
+                seen.add(gap < 0.0)
+        assert seen == {True, False}  # the sweep crossed the first touch
+    finally:
+        backend.close()
 
 
 def test_the_state_contract_tilt_matches_the_rotation_matrix(backend):
