@@ -381,15 +381,16 @@ def _matrix(path: Path, i: int, spec: Any, conditions: dict[str, Condition], set
         raise PlanError(f"{where}randomization must be a list of conf/randomization presets, got {randomizations!r}")
     # n_scenes: one cap for every 3D backend, or a cap per backend (a PyBullet episode costs several
     # MuJoCo ones at its converged timestep); 2D evaluation is cheap and never capped
+    capped = [b for b in backends if b != "pymunk"]
     caps_spec = spec.get("n_scenes")
     if isinstance(caps_spec, dict):
-        unknown = sorted(set(caps_spec) - set(backends))
+        unknown = sorted(set(caps_spec) - set(capped))
         if unknown:
-            raise PlanError(f"{where}n_scenes: {unknown} are not among the matrix's backends {backends}")
+            raise PlanError(f"{where}n_scenes: {unknown} are not among the matrix's 3D backends {capped}")
         caps = {str(b): _scene_cap(v, f"{where}n_scenes.{b}") for b, v in caps_spec.items()}
     else:
         cap = _scene_cap(caps_spec, f"{where}n_scenes")
-        caps = {b: cap for b in backends}
+        caps = {b: cap for b in capped}
     cell_sets = _set_names(spec.get("sets"), sets, f"{where}sets")
     task = str(spec["task"])
     cells = {}
@@ -402,7 +403,7 @@ def _matrix(path: Path, i: int, spec: Any, conditions: dict[str, Condition], set
                     f"({backend})"
                 )
         for backend in backends:
-            cap = None if backend == "pymunk" else caps.get(backend)
+            cap = caps.get(backend)
             for rand in map(str, randomizations):
                 same = [
                     c.name
