@@ -145,8 +145,12 @@ def test_select_and_training_commands(tmp_path, capsys):
         "quickstart_beta",
     }
     assert {c.backend for c in rp.select(plan, "3d")} == {"mujoco", "dm_control", "pybullet"}
-    with pytest.raises(rp.PlanError, match=r"only=4d: '4d' is neither 2d, 3d, matrix nor a condition"):
+    with pytest.raises(rp.PlanError, match=r"only=4d: '4d' is neither 2d, 3d, matrix, zoo nor a condition"):
         rp.select(plan, "4d")
+    trained = rp.select(plan, "zoo")  # each condition that ships policies of its own, none evaluating another's
+    assert {"2d_nav", "mj_nav", "pb_obst_beta_rand"} <= {c.name for c in trained}
+    assert all(c.policies is None and c.shipped for c in trained)
+    assert len(trained) == sum(1 for c in plan.conditions.values() if c.policies is None and c.shipped)
 
     runs = tmp_path / "runs"
     commands = rp.train_commands(plan, rp.select(plan, "mj_nav"), runs, None)
@@ -168,6 +172,45 @@ def test_select_and_training_commands(tmp_path, capsys):
     assert out[0].startswith("done already: footsim-train +experiment=thesis_2d seed=0")
     assert out[1] == f"footsim-train +experiment=thesis_2d seed=1 hydra.run.dir={runs}/2d_nav/seed1"
     assert len(out) == 5 and not (tmp_path / "zoo").exists()  # a dry run trains and adds nothing
+
+
+def test_footsim_reproduce_alone_checks_each_zoo_policy_on_the_standard_set(tmp_path):
+    plan = rp.load_plan()
+    only, sets = rp.scope(plan, None, None, everything=False)
+    assert (only, sets) == ("zoo", ["standard"])
+    jobs, missing = rp.plan_jobs(plan, rp.select(plan, only), zoo.zoo_dir(), None, sets, True)
+    assert not missing and {j.scene_set for j in jobs} == {"standard"}
+    policies = {j.name for j in jobs if j.kind == "policy"}
+    assert policies == set(zoo.names())  # every shipped policy, each once, in its own condition
+    assert all(j.condition == zoo.load_index()["entries"][j.name]["condition"] for j in jobs if j.kind == "policy")
+    assert {(j.condition, j.name) for j in jobs if j.kind == "baseline"} == {
+        (c, b) for b, conds in plan.baselines.items() for c in conds
+    }
+    # all=true: every condition on every set; only= or sets= alone: as given
+    assert rp.scope(plan, None, None, everything=True) == (None, None)
+    assert rp.scope(plan, "mj_nav", None, everything=False) == ("mj_nav", None)
+    assert rp.scope(plan, None, ["heldout"], everything=False) == (None, ["heldout"])
+    with pytest.raises(rp.PlanError, match="all=true re-evaluates every condition .* drop only= and sets="):
+        rp.scope(plan, "2d", None, everything=True)
+    with pytest.raises(SystemExit, match="drop only= and sets="):
+        reproduce_main(["all=true", "sets=standard", f"out={tmp_path}", f"page={tmp_path / 'p.md'}"])
+    # a plan without a reproduce: scope re-evaluates everything
+    bare = rp.load_plan(_plan(tmp_path, BASE))
+    assert rp.scope(bare, None, None, everything=False) == (None, None)
+
+
+@pytest.mark.parametrize(
+    "scope, message",
+    [
+        ("{only: 4d}", r"reproduce\.only: only=4d: '4d' is neither"),
+        ("{sets: [test]}", r"reproduce\.sets: a list of the plan's scene sets"),
+        ("{only: zoo, every: true}", r"reproduce: unknown key\(s\) \['every'\]"),
+        ("[zoo]", r"reproduce must be a mapping"),
+    ],
+)
+def test_a_bad_reproduce_scope_fails_naming_the_key(tmp_path, scope, message):
+    with pytest.raises(rp.PlanError, match=message):
+        rp.load_plan(_plan(tmp_path, BASE + f"reproduce: {scope}\n"))
 
 
 def _rows(path: Path) -> list[dict]:
@@ -292,6 +335,18 @@ def test_reproduce_end_to_end(small_study, tmp_path, capsys):
     reproduce_main([*args, "jobs=2", "strict=true"])
     assert "no cell differs" in capsys.readouterr().out
     assert (out / "runs.csv").read_text() == before
+
+    # the plan's reproduce: scope: only the standard set is re-evaluated, the held-out rows are kept
+    scoped = tmp_path / "scoped.yaml"
+    scoped.write_text(Path(plan).read_text() + "reproduce: {only: zoo, sets: [standard]}\n")
+    reproduce_main([*args[1:], f"plan={scoped}", "strict=true"])
+    report = capsys.readouterr().out
+    assert "evaluated 3 policies and baselines (18 episodes)" in report and "no cell differs" in report
+    assert "3 of the data files' 6 evaluations were not re-evaluated by this selection" in report
+    assert (out / "runs.csv").read_text() == before
+    assert "`footsim-reproduce` alone re-evaluates `only=zoo sets=standard`" in page.read_text()
+    reproduce_main(args)  # the page of the plan without a scope again
+    capsys.readouterr()
 
     # a committed cell that the evaluation does not give back is reported, and strict=true fails
     lines = before.splitlines()

@@ -141,6 +141,10 @@ class Plan:
     paths: tuple[dict, ...] = ()  # per-scene path plots: {condition, set, scenes}
     matrices: tuple[Matrix, ...] = ()  # transfer matrices; their cells are conditions too
     media: tuple[dict, ...] = ()  # pictures and clips made by other commands: {file, caption, command}
+    #: what footsim-reproduce re-evaluates when given neither only= nor sets= (the plan's
+    #: ``reproduce: {only, sets}``); None: every condition, every set
+    default_only: str | None = None
+    default_sets: tuple[str, ...] | None = None
     raw: dict = field(repr=False, default_factory=dict)
 
     def entry(self, condition: Condition, seed: int) -> str:
@@ -320,8 +324,16 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
     for i, spec_ in enumerate(media):
         for key in ("file", "caption", "command"):
             need(spec_, key, str, f"media[{i}].")
+    scope = raw.get("reproduce") or {}
+    if not isinstance(scope, dict):
+        raise PlanError(f"{path}: reproduce must be a mapping with only and sets, got {scope!r}")
+    _known_keys(scope, {"only", "sets"}, f"{path}: reproduce")
+    default_only = scope.get("only")
+    if default_only is not None and not isinstance(default_only, str):
+        raise PlanError(f"{path}: reproduce.only must be a text like only=, got {default_only!r}")
+    default_sets = _set_names(scope.get("sets"), sets, f"{path}: reproduce.sets")
     zoo_name = str(raw.get("zoo_name", "{condition}_s{seed}"))
-    return Plan(
+    plan = Plan(
         path=path,
         name=str(raw.get("name", path.stem)),
         zoo_name=zoo_name,
@@ -334,8 +346,16 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
         paths=paths,
         matrices=matrices,
         media=media,
+        default_only=default_only,
+        default_sets=default_sets,
         raw=raw,
     )
+    if default_only is not None:
+        try:
+            select(plan, default_only)
+        except PlanError as err:
+            raise PlanError(f"{path}: reproduce.only: {err}") from None
+    return plan
 
 
 def _known_keys(spec: dict, known: set[str], where: str) -> None:
@@ -450,7 +470,8 @@ def parse_target(text: str, where: str = "target") -> tuple[str, float]:
 
 def select(plan: Plan, only: str | None) -> list[Condition]:
     """The conditions ``only`` picks: ``2d`` (pymunk), ``3d`` (the 3D backends), ``matrix`` (every
-    cell of the transfer matrices), or condition names."""
+    cell of the transfer matrices), ``zoo`` (the conditions that train policies, each evaluating its
+    own zoo entries), or condition names."""
     conds = list(plan.conditions.values())
     if not only:
         return conds
@@ -462,13 +483,30 @@ def select(plan: Plan, only: str | None) -> list[Condition]:
             picked += [c for c in conds if c.backend != "pymunk"]
         elif item == "matrix":
             picked += [plan.conditions[name] for m in plan.matrices for name in m.cells.values()]
+        elif item == "zoo":
+            picked += [c for c in conds if c.policies is None and c.shipped]
         elif item in plan.conditions:
             picked.append(plan.conditions[item])
         else:
             raise PlanError(
-                f"only={only}: {item!r} is neither 2d, 3d, matrix nor a condition ({', '.join(plan.conditions)})"
+                f"only={only}: {item!r} is neither 2d, 3d, matrix, zoo nor a condition ({', '.join(plan.conditions)})"
             )
     return list(dict.fromkeys(picked))
+
+
+def scope(
+    plan: Plan, only: str | None, sets: Sequence[str] | None, everything: bool
+) -> tuple[str | None, list[str] | None]:
+    """What footsim-reproduce re-evaluates (``only``, ``sets``; None: all): ``only=`` and ``sets=`` as
+    given; with neither, the plan's ``reproduce:`` scope; ``everything`` (``all=true``): every
+    condition on every set."""
+    if everything:
+        if only or sets:
+            raise PlanError("all=true re-evaluates every condition on every scene set: drop only= and sets=")
+        return None, None
+    if only is None and sets is None:
+        return plan.default_only, list(plan.default_sets) if plan.default_sets is not None else None
+    return only, list(sets) if sets is not None else None
 
 
 # -- evaluation jobs ----------------------------------------------------------------------------
@@ -891,6 +929,27 @@ def _zoo_line(plan: Plan, cond: Condition, runs: list[dict], root: Path) -> str:
     return f"{cond.name}: {', '.join(names)} (trained at commit {', '.join(sorted(commits))})"
 
 
+def _scope_lines(plan: Plan) -> list[str]:
+    """What ``footsim-reproduce`` alone re-evaluates, when the plan narrows it."""
+    if plan.default_only is None and plan.default_sets is None:
+        return []
+    given = " ".join(
+        part
+        for part in (
+            f"only={plan.default_only}" if plan.default_only else "",
+            f"sets={','.join(plan.default_sets)}" if plan.default_sets else "",
+        )
+        if part
+    )
+    return [
+        f"`footsim-reproduce` alone re-evaluates `{given}` (the plan's `reproduce:` scope"
+        + (": each zoo policy under its own condition, and the baselines" if plan.default_only == "zoo" else "")
+        + ") and keeps the data files' other evaluations; `footsim-reproduce all=true` re-evaluates every "
+        "cell of this page.",
+        "",
+    ]
+
+
 def render_page(plan: Plan, runs: list[dict], cond_rows: list[dict], root: Path, data_dir: str) -> str:
     cstats = index_stats(cond_rows)
     seeds_of = {}
@@ -905,6 +964,7 @@ def render_page(plan: Plan, runs: list[dict], cond_rows: list[dict], root: Path,
         "interval and the interquartile mean). Study plan: "
         f"`conf/study/{plan.path.name}`. Do not edit this page: run `footsim-reproduce`.",
         "",
+        *_scope_lines(plan),
         "Cells: mean over training seeds [95 % bootstrap interval]; a baseline is one evaluation. "
         "Success time and double steps are over the successful episodes.",
         "",
@@ -1474,6 +1534,13 @@ def reproduce(
         label = f"{job.backend} {'policies' if job.kind == 'policy' else job.name + ' baseline'}"
         by_kind[label] = by_kind.get(label, 0.0) + seconds[job.key]
     print("worker seconds: " + ", ".join(f"{label} {s:.0f} s" for label, s in sorted(by_kind.items())))
+    evaluated = {job.key for job in jobs}
+    kept = sum(1 for r in runs if tuple(r[k] for k in KEY) not in evaluated)
+    if kept:
+        print(
+            f"{kept} of the data files' {len(runs)} evaluations were not re-evaluated by this selection and keep "
+            "their values (footsim-reproduce all=true re-evaluates every one)"
+        )
     if changed:
         print(f"{len(changed)} cell(s) differ from the data files there before:")
         for line in changed:
@@ -1485,6 +1552,7 @@ def reproduce(
         "missing": missing,
         "jobs": len(jobs),
         "episodes": episodes,
+        "kept": kept,
         "wall_s": wall,
         "worker_s": by_kind,
     }

@@ -4,7 +4,10 @@ data files, the results page and its plots, and report the cells that changed
 
 Keys: ``plan`` (default conf/study/v1.yaml), ``zoo`` (default $FOOTSIM_ZOO or footsim/zoo),
 ``out`` (data files and plots, default docs/results), ``page`` (default docs/RESULTS.md),
-``only`` (2d, 3d or condition names, comma-separated), ``sets`` (scene sets, default all),
+``only`` (2d, 3d, matrix, zoo or condition names, comma-separated), ``sets`` (scene sets), ``all``
+(every condition on every set; false: with neither ``only`` nor ``sets`` given, the plan's
+``reproduce:`` scope, in v1 each zoo policy under its own condition on the standard set; the data
+files keep the other evaluations' values),
 ``n_scenes`` (at most this many scenes per set), ``jobs`` (worker processes, default 1),
 ``shard_size`` (scenes per 3D task, default 50; a 2D task takes five times as many), ``baselines``
 (true), ``plots`` (true), ``progress`` (true), ``strict`` (exit 1 when a cell changed; false).
@@ -26,6 +29,7 @@ DEFAULTS: dict[str, str | None] = {
     "page": "docs/RESULTS.md",
     "only": None,
     "sets": None,
+    "all": "false",
     "n_scenes": None,
     "jobs": "1",
     "shard_size": "50",
@@ -39,7 +43,7 @@ DEFAULTS: dict[str, str | None] = {
     "dry_run": "false",
     "add": "true",
 }
-BOOLS = ("baselines", "plots", "progress", "strict", "train", "dry_run", "add")
+BOOLS = ("all", "baselines", "plots", "progress", "strict", "train", "dry_run", "add")
 INTS = ("n_scenes", "jobs", "shard_size")
 
 
@@ -82,14 +86,15 @@ def main(argv: list[str] | None = None) -> None:
             runs_dir = Path(args["runs_dir"] or plan.runs_dir).expanduser().resolve()
             rp.train(plan, conditions, runs_dir, root, args["launcher"], args["dry_run"], args["add"])
             return
+        only, sets = rp.scope(plan, args["only"], args["sets"].split(",") if args["sets"] else None, args["all"])
         result = rp.reproduce(
             plan,
             Path(args["out"]),
             Path(args["page"]),
             root,
-            only=args["only"],
+            only=only,
             n_scenes=args["n_scenes"],
-            sets=args["sets"].split(",") if args["sets"] else None,
+            sets=sets,
             workers=args["jobs"],
             shard_size=args["shard_size"],
             baselines=args["baselines"],
