@@ -8,6 +8,7 @@ import dataclasses
 import json
 import math
 import os
+import shutil
 import subprocess
 import textwrap
 from pathlib import Path
@@ -18,6 +19,7 @@ from footsim import config as fconf
 from footsim import zoo
 from footsim.results import reproduce as rp
 from footsim.tools.reproduce import main as reproduce_main
+from footsim.tools.reproduce import parse_args
 
 
 def test_study_plan_v1_training_commands_compose_to_its_conditions():
@@ -197,6 +199,46 @@ def test_footsim_reproduce_alone_checks_each_zoo_policy_on_the_standard_set(tmp_
     # a plan without a reproduce: scope re-evaluates everything
     bare = rp.load_plan(_plan(tmp_path, BASE))
     assert rp.scope(bare, None, None, everything=False) == (None, None)
+
+
+def test_backend_settings_evaluate_the_study_at_other_physics(tmp_path):
+    pytest.importorskip("mujoco")
+    assert parse_args(["backends.mujoco.physics_dt=0.001"])["backends"] == {"mujoco": {"physics_dt": 0.001}}
+    with pytest.raises(SystemExit, match=r"backends\.mujoco: expected backends\.BACKEND\.KEY=VALUE"):
+        parse_args(["backends.mujoco=1"])
+    with pytest.raises(rp.PlanError, match=r"backends\.mujoco\.physics_dtt: not a setting of conf/backend/mujoco"):
+        rp.check_backend_settings({"mujoco": {"physics_dtt": 0.001}})
+    with pytest.raises(rp.PlanError, match=r"backends\.mujoko: no backend preset 'mujoko'"):
+        rp.check_backend_settings({"mujoko": {"physics_dt": 0.001}})
+
+    plan = rp.load_plan()
+    settings = {"mujoco": {"physics_dt": 0.001}}
+    jobs, _ = rp.plan_jobs(plan, rp.select(plan, "mj_nav"), zoo.zoo_dir(), None, ["standard"], True, settings)
+    assert jobs and all(j.backend_settings == (("physics_dt", 0.001),) for j in jobs)
+    policy = next(j for j in jobs if j.kind == "policy")
+    baseline = next(j for j in jobs if j.kind == "baseline")
+    # the policy recorded the preset's 2 ms; with the setting it runs at 1 ms, and so does the baseline
+    for job, dt in (
+        (policy, 0.001),
+        (baseline, 0.001),
+        (dataclasses.replace(policy, backend_settings=()), 0.002),
+        (dataclasses.replace(baseline, backend_settings=()), 0.002),
+    ):
+        env, _ = rp.job_env_and_controller(job, zoo.zoo_dir())
+        try:
+            assert env.backend.physics_dt == pytest.approx(dt), job
+        finally:
+            env.close()
+
+    # evaluations at other physics never replace the data files' own
+    out = tmp_path / "results"
+    out.mkdir()
+    shutil.copy(Path(__file__).resolve().parents[1] / "docs" / "results" / "runs.csv", out / "runs.csv")
+    before = (out / "runs.csv").read_text()
+    with pytest.raises(SystemExit, match=r"holds mj_nav/standard/.* give out=DIR and page=FILE elsewhere"):
+        args = ["only=mj_nav", "sets=standard", "backends.mujoco.physics_dt=0.001"]
+        reproduce_main([*args, f"out={out}", f"page={tmp_path / 'R.md'}"])
+    assert (out / "runs.csv").read_text() == before and not (tmp_path / "R.md").exists()
 
 
 @pytest.mark.parametrize(

@@ -14,7 +14,8 @@ Also the cross-backend consistency report (final planar pose differences per bac
 backend included) and :func:`timestep_convergence`: the required sequences at the physics
 timestep and at a fraction of it (the physics-setting check of ``docs/BACKENDS.md``), with
 :func:`perturbation_sensitivity`, the same comparison between a run and its twin pushed by a
-negligible force (how close two runs can agree at all).
+negligible force (how close two runs can agree at all), and :func:`ensemble_convergence`, the
+timestep check between ensembles of such pushed runs.
 """
 
 from __future__ import annotations
@@ -272,6 +273,100 @@ def perturbation_sensitivity(
         f"### {backend}: physics_dt {physics_dt * 1000:g} ms, unpushed vs pushed by {push:g} N in the first double step"
     )
     return _compare_runs(plain, pushed, title, "unpushed, pushed", "within the bound")
+
+
+def ensemble_convergence(
+    backend: str,
+    walk: str | Mapping | None = None,
+    robot: str | Mapping | None = None,
+    backend_overrides: Mapping | None = None,
+    divisor: int = 2,
+    members: int = 20,
+    push: float = 0.01,
+    seed: int = 0,
+) -> tuple[list[dict], str]:
+    """:func:`timestep_convergence` for a walk that amplifies any small difference: one run against
+    one run cannot tell integration error from the spread the walk's contact events make of a
+    negligible push (:func:`perturbation_sensitivity`), an ensemble can.  The required sequences at
+    the backend's timestep and at ``1/divisor`` of it, each run ``members`` times with a push of
+    ``push`` newtons in a random horizontal direction on the torso during the first double step (the
+    same pushes at both timesteps), compared by their ensembles (:func:`ensemble_rows`)."""
+    angles = np.random.default_rng(seed).uniform(0.0, 2.0 * math.pi, members)
+    pushes = tuple(np.array([push * math.cos(a), push * math.sin(a), 0.0]) for a in angles)
+    overrides = dict(backend_overrides or {})
+    coarse, (physics_dt, control_dt) = _required_runs(backend, walk, robot, overrides, pushes)
+    fine, _ = _required_runs(
+        backend, walk, robot, {**overrides, "physics_dt": physics_dt / divisor, "control_dt": control_dt}, pushes
+    )
+    title = (
+        f"### {backend}: physics_dt {physics_dt * 1000:g} ms vs {physics_dt / divisor * 1000:g} ms, "
+        f"ensembles of {members} runs pushed by {push:g} N in random horizontal directions"
+    )
+    return ensemble_rows(coarse, fine, title, f"dt, dt/{divisor}")
+
+
+def ensemble_rows(
+    a_runs: list[dict[str, dict]], b_runs: list[dict[str, dict]], title: str, pair: str
+) -> tuple[list[dict], str]:
+    """Per required sequence, two ensembles of runs compared: the falls in each; over the members
+    that walked, the distance between the mean final positions and the difference of the circular
+    mean headings, with its standard error (from each ensemble's sample spread) and the spreads
+    themselves.  Converged: the same number of falls, and the means less than
+    :data:`CONVERGED_POSITION` and :data:`CONVERGED_YAW` apart (or every member fell in both)."""
+
+    def summary(runs: list[dict[str, dict]], name: str) -> dict:
+        walked = [r[name]["pose"] for r in runs if not (r[name]["fell"] or r[name]["sim_error"])]
+        theta = np.array([p.theta for p in walked])
+        xy = np.array([(p.x, p.y) for p in walked]).reshape(-1, 2)
+        mean_theta = math.atan2(np.sin(theta).mean(), np.cos(theta).mean()) if walked else math.nan
+        deviation = np.array([wrap_angle(t - mean_theta) for t in theta])
+        n = len(walked)
+        return {
+            "falls": len(runs) - n,
+            "n": n,
+            "xy": xy.mean(axis=0) if n else np.full(2, math.nan),
+            "theta": mean_theta,
+            "theta_sd": float(deviation.std(ddof=1)) if n > 1 else math.nan,
+            "xy_sd": float(np.sqrt(((xy - xy.mean(axis=0)) ** 2).sum(axis=1).sum() / (n - 1))) if n > 1 else math.nan,
+        }
+
+    rows: list[dict[str, Any]] = []
+    for s in required_sequences():
+        a, b = summary(a_runs, s.name), summary(b_runs, s.name)
+        both = a["n"] > 0 and b["n"] > 0
+        distance = float(np.hypot(*(a["xy"] - b["xy"]))) if both else math.nan
+        heading = abs(wrap_angle(a["theta"] - b["theta"])) if both else math.nan
+        heading_se = math.sqrt(a["theta_sd"] ** 2 / a["n"] + b["theta_sd"] ** 2 / b["n"]) if both else math.nan
+        rows.append(
+            {
+                "sequence": s.name,
+                "falls": (a["falls"], b["falls"]),
+                "distance": distance,
+                "heading": heading,
+                "heading_se": heading_se,
+                "heading_sd": (a["theta_sd"], b["theta_sd"]),
+                "position_sd": (a["xy_sd"], b["xy_sd"]),
+                "converged": a["falls"] == b["falls"]
+                and (not both or (distance < CONVERGED_POSITION and heading < CONVERGED_YAW)),
+            }
+        )
+    lines = [
+        title,
+        "",
+        f"| sequence | falls ({pair}) | mean position diff [m] | mean heading diff [deg] (± s.e.) "
+        f"| members' spread ({pair}) [m; deg] | converged |",
+        "|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        spread = ", ".join(
+            f"{p:.3f}; {math.degrees(h):.1f}" for p, h in zip(r["position_sd"], r["heading_sd"], strict=True)
+        )
+        lines.append(
+            f"| {r['sequence']} | {r['falls'][0]}, {r['falls'][1]} | {r['distance']:.3f} | "
+            f"{math.degrees(r['heading']):.1f} ± {math.degrees(r['heading_se']):.1f} | {spread} | "
+            f"{'yes' if r['converged'] else 'NO'} |"
+        )
+    return rows, "\n".join(lines)
 
 
 def _required_runs(

@@ -35,7 +35,7 @@ import shlex
 import subprocess
 import sys
 import time
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -527,6 +527,9 @@ class Job:
     randomization: str = "none"
     first_scene: int = 0  # the job evaluates scenes first_scene .. first_scene + n_scenes - 1 of its set
     beta_action: str | None = None  # a Beta policy's deterministic action, None: its own
+    #: backend settings over the backend's preset, for the policy's recorded ones and the baselines'
+    #: defaults (``footsim-reproduce backends.B.KEY=V``: the study at other physics); () = as recorded
+    backend_settings: tuple[tuple[str, Any], ...] = ()
 
     @property
     def key(self) -> tuple[str, str, str, str]:
@@ -586,10 +589,33 @@ def lineage_problems(plan: Plan, conditions: Sequence[Condition], root: Path) ->
     return problems
 
 
+def check_backend_settings(settings: Mapping[str, Mapping[str, Any]]) -> None:
+    """``footsim-reproduce backends.B.KEY=V``: B must be a backend preset and KEY one of its keys."""
+    from footsim import config as fconf
+
+    for backend, values in settings.items():
+        try:
+            preset = fconf.load_preset("backend", backend)
+        except Exception:
+            raise PlanError(f"backends.{backend}: no backend preset {backend!r} in conf/backend") from None
+        for key in values:
+            if key == "name" or key not in preset:
+                known = ", ".join(k for k in preset if k != "name")
+                raise PlanError(f"backends.{backend}.{key}: not a setting of conf/backend/{backend}.yaml ({known})")
+
+
 def plan_jobs(
-    plan: Plan, conditions: Sequence[Condition], root: Path, n_scenes: int | None, sets: Sequence[str], baselines: bool
+    plan: Plan,
+    conditions: Sequence[Condition],
+    root: Path,
+    n_scenes: int | None,
+    sets: Sequence[str],
+    baselines: bool,
+    backend_settings: Mapping[str, Mapping[str, Any]] | None = None,
 ) -> tuple[list[Job], list[str]]:
-    """The evaluations of ``conditions`` on ``sets``, and the zoo entries the plan names but the zoo lacks."""
+    """The evaluations of ``conditions`` on ``sets``, and the zoo entries the plan names but the zoo
+    lacks; ``backend_settings`` (backend -> {key: value}) evaluates every job on that backend with
+    those settings over the backend's preset."""
     available = set(zoo.names(root))
     conditions = [c for c in conditions if c.shipped]  # a training stage has no zoo entries
     for cond in conditions:  # a stale entry fails here, naming what changed, before any evaluation
@@ -606,6 +632,7 @@ def plan_jobs(
                 continue
             seed, n = plan.scene_sets[set_name]
             common = _evaluated_as(cond, seed, min([n, *(cap for cap in (cond.n_scenes, n_scenes) if cap is not None)]))
+            common["backend_settings"] = tuple(sorted((backend_settings or {}).get(cond.backend, {}).items()))
             seeds = plan.seeds(cond)
             n_cond = common["n_scenes"]
             blocks = scene_blocks(n_cond, len(seeds)) if cond.split_scenes else [(0, n_cond)] * len(seeds)
@@ -643,8 +670,8 @@ def job_env_and_controller(job: Job, root: str | Path) -> tuple[Any, Any]:
         run_dir = zoo.entry_dir(job.name, Path(root))
         saved = load_run_config(run_dir)
         asked: dict[str, Any] = {}
-        if saved.backend.name != job.backend:
-            asked["backend"] = {"name": job.backend}
+        if saved.backend.name != job.backend or job.backend_settings:
+            asked["backend"] = {"name": job.backend, **dict(job.backend_settings)}
         if saved.task.name != job.task:
             asked["task"] = job.task
         if saved.noise.get("name", "none") != job.noise:
@@ -655,7 +682,8 @@ def job_env_and_controller(job: Job, root: str | Path) -> tuple[Any, Any]:
         # The scene sets are the task preset's (the thesis sampler), whatever a policy trained on.
         run_cfg.task.scenes = fconf.load_preset("task", job.task)["scenes"]
         return make_env(run_cfg), PolicyController(LoadedPolicy(run_dir, beta_action=job.beta_action))
-    env = FootstepEnv(backend=job.backend, task=job.task, noise=job.noise, randomization=job.randomization)
+    backend = {"name": job.backend, **dict(job.backend_settings)} if job.backend_settings else job.backend
+    env = FootstepEnv(backend=backend, task=job.task, noise=job.noise, randomization=job.randomization)
     controller_cfg = fconf.to_plain(fconf.compose("eval", [f"controller={job.name}"]).controller)
     return env, make_controller(env, controller_cfg)
 
@@ -1482,6 +1510,7 @@ def reproduce(
     baselines: bool = True,
     progress: bool = True,
     plots: bool = True,
+    backend_settings: Mapping[str, Mapping[str, Any]] | None = None,
 ) -> dict:
     """Evaluate, write the data files, page and plots; returns ``{"differences": [...], "missing": [...], ...}``."""
     sets = list(sets or plan.scene_sets)
@@ -1489,9 +1518,18 @@ def reproduce(
         if name not in plan.scene_sets:
             raise PlanError(f"sets={','.join(sets)}: no scene set {name!r} in the plan ({', '.join(plan.scene_sets)})")
     conditions = select(plan, only)
-    jobs, missing = plan_jobs(plan, conditions, root, n_scenes, sets, baselines)
+    if backend_settings:
+        check_backend_settings(backend_settings)
+    jobs, missing = plan_jobs(plan, conditions, root, n_scenes, sets, baselines, backend_settings)
     old_runs = read_csv(out / RUNS_FILE)
     recorded = {tuple(r[k] for k in KEY): int(r["n_scenes"]) for r in old_runs}
+    if backend_settings:  # other physics must not replace the recorded evaluations
+        held = [j for j in jobs if j.backend_settings and tuple(str(v) for v in j.key) in recorded]
+        if held:
+            raise PlanError(
+                f"{out / RUNS_FILE} holds {'/'.join(held[0].key)} and {len(held) - 1} more of the evaluations "
+                f"backends.* would redo at other settings: give out=DIR and page=FILE elsewhere"
+            )
     fewer = [j for j in jobs if n_scenes is not None and recorded.get(tuple(str(v) for v in j.key), 0) > j.n_scenes]
     if fewer:  # a quick look (n_scenes=20) must not replace the full evaluations in the data files
         j = fewer[0]
@@ -1529,6 +1567,9 @@ def reproduce(
     atomic_write_text(page, render_page(plan, runs, cond_rows, root, data_dir))
     episodes = sum(j.n_scenes for j in jobs)
     print(f"evaluated {len(jobs)} policies and baselines ({episodes} episodes) in {wall:.0f} s; {out}, {page}")
+    if backend_settings:
+        shown = " ".join(f"backends.{b}.{k}={v}" for b, values in backend_settings.items() for k, v in values.items())
+        print(f"at {shown}, over each backend's preset (not the settings the policies recorded)")
     by_kind: dict[str, float] = {}
     for job in jobs:
         label = f"{job.backend} {'policies' if job.kind == 'policy' else job.name + ' baseline'}"

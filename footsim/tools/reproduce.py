@@ -10,7 +10,11 @@ Keys: ``plan`` (default conf/study/v1.yaml), ``zoo`` (default $FOOTSIM_ZOO or fo
 files keep the other evaluations' values),
 ``n_scenes`` (at most this many scenes per set), ``jobs`` (worker processes, default 1),
 ``shard_size`` (scenes per 3D task, default 50; a 2D task takes five times as many), ``baselines``
-(true), ``plots`` (true), ``progress`` (true), ``strict`` (exit 1 when a cell changed; false).
+(true), ``plots`` (true), ``progress`` (true), ``strict`` (exit 1 when a cell changed; false),
+``backends.B.KEY=V`` (evaluate every job on backend B with setting KEY of conf/backend/B.yaml at V,
+over the preset, instead of the settings a policy recorded: the study at other physics, e.g.
+``backends.mujoco.physics_dt=0.001``; needs ``out`` and ``page`` away from the data files it would
+replace).
 Training: ``train=true [launcher=L | +launcher=L] [runs_dir=DIR] [dry_run=true] [add=true]``.
 """
 
@@ -18,6 +22,8 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+
+from omegaconf import OmegaConf
 
 from footsim import zoo
 from footsim.results import reproduce as rp
@@ -49,6 +55,7 @@ INTS = ("n_scenes", "jobs", "shard_size")
 
 def parse_args(argv: list[str]) -> dict:
     args: dict = dict(DEFAULTS)
+    args["backends"] = {}
     for arg in argv:
         if arg in ("-h", "--help"):
             raise SystemExit(__doc__)
@@ -56,6 +63,13 @@ def parse_args(argv: list[str]) -> dict:
             raise SystemExit(f"footsim-reproduce: expected key=value, got {arg!r}; keys: {sorted(DEFAULTS)}")
         key, value = arg.split("=", 1)
         key = "launcher" if key == "+launcher" else key
+        if key.startswith("backends."):
+            parts = key.split(".")
+            if len(parts) != 3 or not all(parts):
+                raise SystemExit(f"footsim-reproduce: {key}: expected backends.BACKEND.KEY=VALUE")
+            # typed as on a Hydra command line (0.001 a float, true a bool)
+            args["backends"].setdefault(parts[1], {})[parts[2]] = OmegaConf.from_dotlist([f"v={value}"]).v
+            continue
         if key not in DEFAULTS:
             raise SystemExit(f"footsim-reproduce: unknown key {key!r}; keys: {sorted(DEFAULTS)}")
         args[key] = value
@@ -100,6 +114,7 @@ def main(argv: list[str] | None = None) -> None:
             baselines=args["baselines"],
             progress=args["progress"],
             plots=args["plots"],
+            backend_settings=args["backends"],
         )
     except (rp.PlanError, zoo.ZooError) as err:
         raise SystemExit(f"footsim-reproduce: {err}") from None
