@@ -96,7 +96,7 @@ def test_joint_name_mapping(backend):
     sim.model.opt.gravity[:] = 0.0
     try:
         sim.data.qpos[2] += 0.3
-        sim.advance(400)
+        sim.advance(round(0.8 / backend.physics_dt))  # 0.8 s of simulated time
         reached = np.array([sim.data.qpos[sim.joint_qpos[n]] for n in LEG_JOINT_NAMES])
     finally:
         sim.model.opt.gravity[:] = (0.0, 0.0, -9.81)

@@ -212,17 +212,26 @@ def test_backend_settings_evaluate_the_study_at_other_physics(tmp_path):
         rp.check_backend_settings({"mujoko": {"physics_dt": 0.001}})
 
     plan = rp.load_plan()
-    settings = {"mujoco": {"physics_dt": 0.001}}
+    settings = {"mujoco": {"physics_dt": 0.0005}}
     jobs, _ = rp.plan_jobs(plan, rp.select(plan, "mj_nav"), zoo.zoo_dir(), None, ["standard"], True, settings)
-    assert jobs and all(j.backend_settings == (("physics_dt", 0.001),) for j in jobs)
+    assert jobs and all(j.backend_settings == (("physics_dt", 0.0005),) for j in jobs)
     policy = next(j for j in jobs if j.kind == "policy")
     baseline = next(j for j in jobs if j.kind == "baseline")
-    # the policy recorded the preset's 2 ms; with the setting it runs at 1 ms, and so does the baseline
+    on_mujoco = next(
+        j
+        for j in rp.plan_jobs(
+            plan, rp.select(plan, "2d_nav_on_mujoco"), zoo.zoo_dir(), None, ["standard"], False, settings
+        )[0]
+    )  # a 2D policy on MuJoCo
+    # the policy recorded 2 ms, the baseline and the 2D policy get the preset's 1 ms; with the setting
+    # every one runs at 0.5 ms
     for job, dt in (
-        (policy, 0.001),
-        (baseline, 0.001),
+        (policy, 0.0005),
+        (baseline, 0.0005),
+        (on_mujoco, 0.0005),
         (dataclasses.replace(policy, backend_settings=()), 0.002),
-        (dataclasses.replace(baseline, backend_settings=()), 0.002),
+        (dataclasses.replace(baseline, backend_settings=()), 0.001),
+        (dataclasses.replace(on_mujoco, backend_settings=()), 0.001),
     ):
         env, _ = rp.job_env_and_controller(job, zoo.zoo_dir())
         try:
@@ -236,9 +245,35 @@ def test_backend_settings_evaluate_the_study_at_other_physics(tmp_path):
     shutil.copy(Path(__file__).resolve().parents[1] / "docs" / "results" / "runs.csv", out / "runs.csv")
     before = (out / "runs.csv").read_text()
     with pytest.raises(SystemExit, match=r"holds mj_nav/standard/.* give out=DIR and page=FILE elsewhere"):
-        args = ["only=mj_nav", "sets=standard", "backends.mujoco.physics_dt=0.001"]
+        args = ["only=mj_nav", "sets=standard", "backends.mujoco.physics_dt=0.0005"]
         reproduce_main([*args, f"out={out}", f"page={tmp_path / 'R.md'}"])
     assert (out / "runs.csv").read_text() == before and not (tmp_path / "R.md").exists()
+
+
+def test_the_plans_backend_settings_go_into_its_trainings_and_evaluations(tmp_path):
+    plan = rp.load_plan()
+    assert plan.backends == {"mujoco": {"physics_dt": 0.002}, "dm_control": {"physics_dt": 0.002}}
+    (command,) = rp.train_commands(plan, [plan.conditions["mj_nav"]], tmp_path, None)[5:6]
+    assert command[command.index("agent.log_std_init=-1.0") + 1] == "backend.physics_dt=0.002"
+    assert fconf.compose("config", plan.train_overrides(plan.conditions["mj_nav"])).backend.physics_dt == 0.002
+    assert not any("physics_dt" in o for o in plan.train_overrides(plan.conditions["2d_nav"]))
+    # every evaluation on MuJoCo or dm-control runs at them, the CLI's backends.* over them
+    conds = rp.select(plan, "mj_nav,mj_nav_on_dm_control,2d_nav_on_mujoco,2d_nav_on_pybullet")
+    evaluated_at = {"mujoco": {"physics_dt": 0.002}, "dm_control": {"physics_dt": 0.002}}
+    jobs, _ = rp.plan_jobs(plan, conds, zoo.zoo_dir(), None, ["standard"], True, evaluated_at)
+    assert {(j.backend, j.backend_settings) for j in jobs} == {
+        ("mujoco", (("physics_dt", 0.002),)),
+        ("dm_control", (("physics_dt", 0.002),)),
+        ("pybullet", ()),
+    }
+    assert "The study trains and evaluates at these backend settings" in rp.render_page(
+        plan, [], [], zoo.zoo_dir(), "d"
+    )
+    # a plan's own line that sets the key keeps it
+    pinned = dataclasses.replace(plan.conditions["mj_nav"], train=("backend=mujoco", "backend.physics_dt=0.004"))
+    assert plan.train_overrides(pinned) == ["backend=mujoco", "backend.physics_dt=0.004"]
+    with pytest.raises(rp.PlanError, match=r"backends\.mujoco\.dt: not a setting of conf/backend/mujoco"):
+        rp.load_plan(_plan(tmp_path, BASE + "backends: {mujoco: {dt: 0.002}}\n"))
 
 
 @pytest.mark.parametrize(

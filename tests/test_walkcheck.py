@@ -70,3 +70,16 @@ def test_ensemble_convergence_runs_the_same_pushes_at_both_timesteps(monkeypatch
     assert all(np.linalg.norm(p) == pytest.approx(0.01) and p[2] == 0.0 for p in coarse_pushes)
     assert len({round(math.atan2(p[1], p[0]), 6) for p in coarse_pushes}) == 5  # different directions
     assert "2 ms vs 1 ms, ensembles of 5 runs pushed by 0.01 N" in text and all(r["converged"] for r in rows)
+
+
+def test_a_walkcheck_page_names_its_command_and_each_backends_timesteps():
+    from footsim.tools.walkcheck import header
+
+    page = header(
+        ["walk=bitbots_sim", "backend.physics_dt=0.0005"], "bitbots_sim", ["mujoco"], {"physics_dt": 0.0005}, False
+    )
+    assert page.startswith("# footsim-walkcheck, walk=bitbots_sim")
+    assert "Command: `footsim-walkcheck walk=bitbots_sim backend.physics_dt=0.0005`" in page
+    assert "mujoco 0.5 ms physics, 8 ms targets" in page and "ensemble" not in page
+    # PyBullet's defaults: 1/960 s ticks, targets every eighth one (1/120 s)
+    assert "pybullet 1.04167 ms physics, 8.33333 ms targets" in header([], "", ["pybullet"], {}, True)

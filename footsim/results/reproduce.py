@@ -141,6 +141,10 @@ class Plan:
     paths: tuple[dict, ...] = ()  # per-scene path plots: {condition, set, scenes}
     matrices: tuple[Matrix, ...] = ()  # transfer matrices; their cells are conditions too
     media: tuple[dict, ...] = ()  # pictures and clips made by other commands: {file, caption, command}
+    #: the backend settings the study trains and evaluates at, over each backend's preset (the
+    #: plan's ``backends: {B: {KEY: V}}``): added to the training commands of the conditions on B and
+    #: to every evaluation on B
+    backends: dict[str, dict[str, Any]] = field(default_factory=dict)
     #: what footsim-reproduce re-evaluates when given neither only= nor sets= (the plan's
     #: ``reproduce: {only, sets}``); None: every condition, every set
     default_only: str | None = None
@@ -152,6 +156,13 @@ class Plan:
 
     def seeds(self, condition: Condition) -> tuple[int, ...]:
         return self.conditions[condition.source].seeds
+
+    def train_overrides(self, condition: Condition) -> list[str]:
+        """A trained condition's footsim-train overrides: its ``train`` line, then the plan's backend
+        settings for its backend that the line does not set itself."""
+        own = {o.split("=", 1)[0] for o in condition.train}
+        pinned = self.backends.get(condition.backend, {})
+        return [*condition.train, *(f"backend.{k}={v}" for k, v in pinned.items() if f"backend.{k}" not in own)]
 
 
 def plan_path(spec: str | os.PathLike | None) -> Path:
@@ -324,6 +335,13 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
     for i, spec_ in enumerate(media):
         for key in ("file", "caption", "command"):
             need(spec_, key, str, f"media[{i}].")
+    backends = raw.get("backends") or {}
+    if not isinstance(backends, dict) or not all(isinstance(v, dict) for v in backends.values()):
+        raise PlanError(f"{path}: backends must map a backend to its settings, e.g. {{mujoco: {{physics_dt: 0.002}}}}")
+    try:
+        check_backend_settings(backends)
+    except PlanError as err:
+        raise PlanError(f"{path}: {err}") from None
     scope = raw.get("reproduce") or {}
     if not isinstance(scope, dict):
         raise PlanError(f"{path}: reproduce must be a mapping with only and sets, got {scope!r}")
@@ -346,6 +364,7 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
         paths=paths,
         matrices=matrices,
         media=media,
+        backends={b: dict(v) for b, v in backends.items()},
         default_only=default_only,
         default_sets=default_sets,
         raw=raw,
@@ -670,7 +689,7 @@ def job_env_and_controller(job: Job, root: str | Path) -> tuple[Any, Any]:
         run_dir = zoo.entry_dir(job.name, Path(root))
         saved = load_run_config(run_dir)
         asked: dict[str, Any] = {}
-        if saved.backend.name != job.backend or job.backend_settings:
+        if saved.backend.name != job.backend:  # the backend's preset, with the job's settings over it
             asked["backend"] = {"name": job.backend, **dict(job.backend_settings)}
         if saved.task.name != job.task:
             asked["task"] = job.task
@@ -679,6 +698,9 @@ def job_env_and_controller(job: Job, root: str | Path) -> tuple[Any, Any]:
         if (saved.get("randomization") or {}).get("name", "none") != job.randomization:
             asked["randomization"] = job.randomization
         run_cfg = eval_run_config(run_dir, OmegaConf.create(asked))
+        if saved.backend.name == job.backend:  # the policy's own recorded backend, the job's settings over it
+            for key, value in job.backend_settings:
+                run_cfg.backend[key] = value
         # The scene sets are the task preset's (the thesis sampler), whatever a policy trained on.
         run_cfg.task.scenes = fconf.load_preset("task", job.task)["scenes"]
         return make_env(run_cfg), PolicyController(LoadedPolicy(run_dir, beta_action=job.beta_action))
@@ -927,7 +949,8 @@ def _train_line(plan: Plan, cond: Condition) -> str:
     parent = f" init_from={plan.runs_dir}/{cond.parent}/seed<S>" if cond.parent else ""
     seeds = ",".join(str(s) for s in cond.seeds)
     stage = "" if cond.shipped else " (a training stage: its policies are not in the zoo)"
-    return f"{cond.name}: `{' '.join(['footsim-train', *cond.train])} seed=<S>{parent}` (S = {seeds}){stage}"
+    command = " ".join(["footsim-train", *plan.train_overrides(cond)])
+    return f"{cond.name}: `{command} seed=<S>{parent}` (S = {seeds}){stage}"
 
 
 def _with_stages(plan: Plan, conds: Sequence[Condition]) -> list[Condition]:
@@ -955,6 +978,19 @@ def _zoo_line(plan: Plan, cond: Condition, runs: list[dict], root: Path) -> str:
         except (zoo.ZooError, OSError, ValueError):
             commits.add("not in this zoo")
     return f"{cond.name}: {', '.join(names)} (trained at commit {', '.join(sorted(commits))})"
+
+
+def _physics_lines(plan: Plan) -> list[str]:
+    """The backend settings the study runs at where the plan sets them."""
+    if not plan.backends:
+        return []
+    shown = "; ".join(
+        f"{b}: " + ", ".join(f"`{k}` {v}" for k, v in values.items()) for b, values in plan.backends.items()
+    )
+    return [
+        f"The study trains and evaluates at these backend settings over the presets (the plan's `backends:`): {shown}.",
+        "",
+    ]
 
 
 def _scope_lines(plan: Plan) -> list[str]:
@@ -993,6 +1029,7 @@ def render_page(plan: Plan, runs: list[dict], cond_rows: list[dict], root: Path,
         f"`conf/study/{plan.path.name}`. Do not edit this page: run `footsim-reproduce`.",
         "",
         *_scope_lines(plan),
+        *_physics_lines(plan),
         "Cells: mean over training seeds [95 % bootstrap interval]; a baseline is one evaluation. "
         "Success time and double steps are over the successful episodes.",
         "",
@@ -1520,11 +1557,15 @@ def reproduce(
     conditions = select(plan, only)
     if backend_settings:
         check_backend_settings(backend_settings)
-    jobs, missing = plan_jobs(plan, conditions, root, n_scenes, sets, baselines, backend_settings)
+    evaluated_at = {
+        b: {**plan.backends.get(b, {}), **(backend_settings or {}).get(b, {})}
+        for b in {*plan.backends, *(backend_settings or {})}
+    }
+    jobs, missing = plan_jobs(plan, conditions, root, n_scenes, sets, baselines, evaluated_at)
     old_runs = read_csv(out / RUNS_FILE)
     recorded = {tuple(r[k] for k in KEY): int(r["n_scenes"]) for r in old_runs}
     if backend_settings:  # other physics must not replace the recorded evaluations
-        held = [j for j in jobs if j.backend_settings and tuple(str(v) for v in j.key) in recorded]
+        held = [j for j in jobs if j.backend in backend_settings and tuple(str(v) for v in j.key) in recorded]
         if held:
             raise PlanError(
                 f"{out / RUNS_FILE} holds {'/'.join(held[0].key)} and {len(held) - 1} more of the evaluations "
@@ -1569,7 +1610,7 @@ def reproduce(
     print(f"evaluated {len(jobs)} policies and baselines ({episodes} episodes) in {wall:.0f} s; {out}, {page}")
     if backend_settings:
         shown = " ".join(f"backends.{b}.{k}={v}" for b, values in backend_settings.items() for k, v in values.items())
-        print(f"at {shown}, over each backend's preset (not the settings the policies recorded)")
+        print(f"at {shown}, over each backend's preset and the plan's settings (not the study's physics)")
     by_kind: dict[str, float] = {}
     for job in jobs:
         label = f"{job.backend} {'policies' if job.kind == 'policy' else job.name + ' baseline'}"
@@ -1626,7 +1667,7 @@ def train_commands(
         target = runs_dir / cond.name
         if launcher is None:
             for s in cond.seeds:
-                cmd = ["footsim-train", *cond.train, f"seed={s}"]
+                cmd = ["footsim-train", *plan.train_overrides(cond), f"seed={s}"]
                 if cond.parent:
                     cmd.append(f"init_from={runs_dir / cond.parent / f'seed{s}'}")
                 commands.append([*cmd, f"hydra.run.dir={target / f'seed{s}'}"])
@@ -1635,7 +1676,7 @@ def train_commands(
                 "footsim-train",
                 "-m",
                 f"+launcher={launcher}",
-                *cond.train,
+                *plan.train_overrides(cond),
                 f"seed={','.join(str(s) for s in cond.seeds)}",
             ]
             if cond.parent:

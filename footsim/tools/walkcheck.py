@@ -7,6 +7,7 @@ key of every listed 3D backend's config (e.g. ``backend.physics_dt=0.001``)."""
 
 from __future__ import annotations
 
+import datetime
 import sys
 
 from omegaconf import OmegaConf
@@ -35,8 +36,33 @@ def split_overrides(argv: list[str]) -> tuple[list[str], dict[str, dict]]:
     return own, groups
 
 
+def header(argv: list[str], walk_name: str, backends: list[str], backend_overrides: dict, convergence: bool) -> str:
+    """The page's title, its command, the date and each backend's timesteps (written with out=)."""
+    from footsim import config as fconf
+
+    timing = []
+    for name in backends:
+        cfg = fconf.env_config(backend={"name": name, **backend_overrides})["backend"]
+        timing.append(f"{name} {cfg['physics_dt'] * 1000:.6g} ms physics, {cfg['control_dt'] * 1000:.6g} ms targets")
+    lines = [
+        f"# {COMMAND}, walk={walk_name or 'default'} (FootstepNav-v1 defaults otherwise)",
+        "",
+        f"Command: `{' '.join([COMMAND, *argv])}`",
+        f"({datetime.date.today().isoformat()}; {'; '.join(timing)}; written by the command.)",
+    ]
+    if convergence:
+        lines += [
+            "",
+            "The convergence tables compare one run at each timestep; where the walk amplifies small differences "
+            "(MuJoCo), `footsim.calibration.walkcheck.ensemble_convergence` compares ensembles of pushed runs "
+            '(`docs/walkcheck/convergence_finer.md`, "Ensembles").',
+        ]
+    return "\n".join(lines) + "\n\n"
+
+
 def main(argv: list[str] | None = None) -> None:
-    own, overrides = split_overrides(sys.argv[1:] if argv is None else argv)
+    argv = sys.argv[1:] if argv is None else argv
+    own, overrides = split_overrides(argv)
     args = parse_kv_args(
         own,
         {"backends": "mujoco,dm_control,pybullet", "walk": "", "robot": "", "convergence": "false", "out": ""},
@@ -60,7 +86,8 @@ def main(argv: list[str] | None = None) -> None:
         raise SystemExit(f"{COMMAND}: {err}") from None
     print(table)
     if args["out"]:
-        atomic_write_text(args["out"], table + "\n")
+        page = header(argv, args["walk"], backends, overrides["backend"], args["convergence"] == "true")
+        atomic_write_text(args["out"], page + table + "\n")
 
 
 if __name__ == "__main__":  # pragma: no cover
