@@ -609,18 +609,17 @@ def lineage_problems(plan: Plan, conditions: Sequence[Condition], root: Path) ->
 
 
 def check_backend_settings(settings: Mapping[str, Mapping[str, Any]]) -> None:
-    """``footsim-reproduce backends.B.KEY=V``: B must be a backend preset and KEY one of its keys."""
+    """``backends.B.KEY=V`` (plan or command line): checked as the env's config checks a backend
+    mapping, so B must be a backend and KEY one of its settings."""
     from footsim import config as fconf
 
     for backend, values in settings.items():
+        if "name" in values:
+            raise PlanError(f"backends.{backend}.name: the backend is named by the key ({backend})")
         try:
-            preset = fconf.load_preset("backend", backend)
-        except Exception:
-            raise PlanError(f"backends.{backend}: no backend preset {backend!r} in conf/backend") from None
-        for key in values:
-            if key == "name" or key not in preset:
-                known = ", ".join(k for k in preset if k != "name")
-                raise PlanError(f"backends.{backend}.{key}: not a setting of conf/backend/{backend}.yaml ({known})")
+            fconf.env_config(backend={"name": backend, **values})
+        except ValueError as err:
+            raise PlanError(f"backends.{backend}: {err}") from None
 
 
 def plan_jobs(
