@@ -225,15 +225,8 @@ def timestep_convergence(
     difference and whether the outcome (fall or not) changed.  Converged: no outcome changed, and
     every sequence walked in both runs ends less than :data:`CONVERGED_POSITION` and
     :data:`CONVERGED_YAW` apart."""
-    overrides = dict(backend_overrides or {})
-    (coarse,), (physics_dt, control_dt) = _required_runs(backend, walk, robot, overrides)
-    (fine,), _ = _required_runs(
-        backend, walk, robot, {**overrides, "physics_dt": physics_dt / divisor, "control_dt": control_dt}
-    )
-    title = (
-        f"### {backend}: physics_dt {physics_dt * 1000:g} ms vs {physics_dt / divisor * 1000:g} ms "
-        f"(control_dt {control_dt * 1000:g} ms)"
-    )
+    (coarse,), (fine,), title, control_dt = _at_two_timesteps(backend, walk, robot, backend_overrides, divisor)
+    title += f" (control_dt {control_dt * 1000:g} ms)"
     return _compare_runs(coarse, fine, title, f"dt, dt/{divisor}", "converged")
 
 
@@ -293,15 +286,8 @@ def ensemble_convergence(
     same pushes at both timesteps), compared by their ensembles (:func:`ensemble_rows`)."""
     angles = np.random.default_rng(seed).uniform(0.0, 2.0 * math.pi, members)
     pushes = tuple(np.array([push * math.cos(a), push * math.sin(a), 0.0]) for a in angles)
-    overrides = dict(backend_overrides or {})
-    coarse, (physics_dt, control_dt) = _required_runs(backend, walk, robot, overrides, pushes)
-    fine, _ = _required_runs(
-        backend, walk, robot, {**overrides, "physics_dt": physics_dt / divisor, "control_dt": control_dt}, pushes
-    )
-    title = (
-        f"### {backend}: physics_dt {physics_dt * 1000:g} ms vs {physics_dt / divisor * 1000:g} ms, "
-        f"ensembles of {members} runs pushed by {push:g} N in random horizontal directions"
-    )
+    coarse, fine, title, _ = _at_two_timesteps(backend, walk, robot, backend_overrides, divisor, pushes)
+    title += f", ensembles of {members} runs pushed by {push:g} N in random horizontal directions"
     return ensemble_rows(coarse, fine, title, f"dt, dt/{divisor}")
 
 
@@ -367,6 +353,25 @@ def ensemble_rows(
             f"{'yes' if r['converged'] else 'NO'} |"
         )
     return rows, "\n".join(lines)
+
+
+def _at_two_timesteps(
+    backend: str,
+    walk: str | Mapping | None,
+    robot: str | Mapping | None,
+    overrides: Mapping | None,
+    divisor: int,
+    pushes: tuple[np.ndarray | None, ...] = (None,),
+) -> tuple[list[dict[str, dict]], list[dict[str, dict]], str, float]:
+    """The required sequences (once per push) at the backend's physics timestep and at ``1/divisor``
+    of it, the control period unchanged: ``(coarse runs, fine runs, title, control_dt)``."""
+    overrides = dict(overrides or {})
+    coarse, (physics_dt, control_dt) = _required_runs(backend, walk, robot, overrides, pushes)
+    fine, _ = _required_runs(
+        backend, walk, robot, {**overrides, "physics_dt": physics_dt / divisor, "control_dt": control_dt}, pushes
+    )
+    title = f"### {backend}: physics_dt {physics_dt * 1000:g} ms vs {physics_dt / divisor * 1000:g} ms"
+    return coarse, fine, title, control_dt
 
 
 def _required_runs(
