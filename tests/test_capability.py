@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import csv
 import dataclasses
+import io
 import itertools
 import math
 
@@ -147,10 +149,32 @@ def test_the_command_writes_the_map_and_prints_the_summary(tmp_path, capsys):
     assert (tmp_path / "capability.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_backend_settings_reach_the_measured_backend(tmp_path, capsys):
+    # The 2D backend's fall model is a backend setting: fed a map where every forward step at the
+    # limit falls, the measured map must show exactly those falls (the 2D robot never falls alone).
+    main(["backend=pymunk", "grid=same:3", "repeats=1", f"out={tmp_path / 'stable'}"])
+    rows = list(csv.DictReader(io.StringIO((tmp_path / "stable" / "capability.csv").read_text())))
+    for row in rows:  # a cell's fall rate is read as falls / n
+        forward = float(row["right_x"]) == 1.0
+        row["falls"], row["fall_rate"] = (row["n"], "1.0") if forward else ("0", "0.0")
+    given = tmp_path / "given.csv"
+    with given.open("w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    main(["backend=pymunk", "grid=same:3", "repeats=1", f"backend.fall_model={given}", f"out={tmp_path / 'falling'}"])
+    assert f"pymunk, fall_model={given}" in capsys.readouterr().out
+    measured = cap.read_map(tmp_path / "falling")
+    assert [c.fall_rate for c in measured] == [float(r["fall_rate"]) for r in rows]
+    assert sum(c.falls for c in measured) == 9  # x at the limit: 3 levels of y times 3 of theta
+
+
 @pytest.mark.parametrize(
     ("argv", "words"),
     [
         (["backend=nope"], ["unknown backend", "nope", "pymunk"]),
+        (["backend=pymunk", "backend.colour=red"], ["backend pymunk", "unknown key", "'colour'"]),
+        (["compare=a,b", "backend.physics_dt=0.001"], ["compare=", "backend.KEY=VALUE"]),
         (["backend=pymunk", "repeats=0"], ["repeats", "'0'"]),
         (["backend=pymunk", "seed=x"], ["seed", "'x'"]),
         (["backend=pymunk", "grid=same:1"], ["grid", "'1'"]),

@@ -349,12 +349,13 @@ def summary_text(cells: Sequence[Cell]) -> str:
     )
 
 
-def make_backend(backend: str, walk: str | None = None) -> Backend:
+def make_backend(backend: str, walk: str | None = None, backend_overrides: Mapping | None = None) -> Backend:
     """The backend as :func:`footsim.calibration.walkcheck.make_backend` builds it (the
-    backend's own walk preset), or with the walk preset ``walk``."""
+    backend's own walk preset), or with the walk preset ``walk``; ``backend_overrides`` over its
+    config (e.g. ``{"rolling_friction": 0.0}``)."""
     from footsim.calibration.walkcheck import make_backend as walkcheck_backend
 
-    return walkcheck_backend(backend, walk)
+    return walkcheck_backend(backend, walk, backend_overrides=backend_overrides)
 
 
 def capability_map(
@@ -367,15 +368,17 @@ def capability_map(
     seed: int = 0,
     warmup: int = 2,
     progress: Callable[[int, int], None] | None = None,
+    backend_overrides: Mapping | None = None,
 ) -> list[Cell]:
-    """Measure every cell of ``grid`` ``repeats`` times on ``backend``; trial k of cell i runs
-    with the generator seeded by ``(seed, i, k)`` (resets, randomization draws)."""
+    """Measure every cell of ``grid`` ``repeats`` times on ``backend`` (its config merged with
+    ``backend_overrides``); trial k of cell i runs with the generator seeded by ``(seed, i, k)``
+    (resets, randomization draws)."""
     if repeats < 1:
         raise ValueError(f"repeats must be >= 1, got {repeats!r}")
     if warmup < 0:
         raise ValueError(f"warmup must be >= 0, got {warmup!r}")
     actions = capability_grid(grid)
-    sim = make_backend(backend, walk)
+    sim = make_backend(backend, walk, backend_overrides)
     try:
         randomizer = None
         if randomization not in (None, "", "none"):

@@ -1,6 +1,8 @@
 """``footsim-capability backend=B [walk=W] [randomization=R] [grid=same:5] [repeats=2] [seed=0]
-[warmup=2] [out=DIR]``: the capability map of a backend (:mod:`footsim.calibration.capability`):
-``DIR/capability.csv`` and ``DIR/capability.png`` (default ``DIR`` = ``capability_<backend>``).
+[warmup=2] [backend.KEY=VALUE ...] [out=DIR]``: the capability map of a backend
+(:mod:`footsim.calibration.capability`): ``DIR/capability.csv`` and ``DIR/capability.png`` (default
+``DIR`` = ``capability_<backend>``).  ``backend.KEY=VALUE`` overrides a key of the backend's config
+(e.g. ``backend.rolling_friction=0``), as in ``footsim-walkcheck``.
 
 ``footsim-capability compare=DIR_A,DIR_B [out=FILE.png]``: where two maps disagree (default
 ``FILE`` = ``capability_compare.png``)."""
@@ -13,6 +15,7 @@ from pathlib import Path
 from footsim import config as fconf
 from footsim.backends.base import require_known_backends
 from footsim.calibration import capability as cap
+from footsim.tools.walkcheck import split_overrides
 from footsim.utils import parse_kv_args
 
 COMMAND = "footsim-capability"
@@ -30,8 +33,10 @@ def _whole(args: dict, key: str, minimum: int) -> int:
 
 
 def main(argv: list[str] | None = None) -> None:
+    own, groups = split_overrides(sys.argv[1:] if argv is None else argv, ("backend",))
+    backend_overrides = groups["backend"]
     args = parse_kv_args(
-        sys.argv[1:] if argv is None else argv,
+        own,
         {
             "backend": "",
             "walk": "",
@@ -46,6 +51,8 @@ def main(argv: list[str] | None = None) -> None:
         COMMAND,
     )
     if args["compare"]:
+        if backend_overrides:
+            raise SystemExit(f"{COMMAND}: compare= reads two maps; backend.KEY=VALUE applies to measuring one")
         _compare(args)
         return
     if not args["backend"]:
@@ -55,6 +62,8 @@ def main(argv: list[str] | None = None) -> None:
     walk = args["walk"] or None
     try:  # every argument checked before the first trial
         cap.capability_grid(args["grid"])
+        if backend_overrides:  # the backend's own check: known keys, valid values
+            fconf.env_config(backend={"name": args["backend"], **backend_overrides})
         if walk is not None:
             fconf.load_preset("walk", walk)
         fconf.load_preset("randomization", args["randomization"])
@@ -66,17 +75,22 @@ def main(argv: list[str] | None = None) -> None:
         if done == total or done % 25 == 0:
             print(f"{done}/{total} cells", flush=True)
 
-    cells, seconds = cap.timed_map(
-        args["backend"],
-        walk=walk,
-        randomization=args["randomization"],
-        grid=args["grid"],
-        repeats=repeats,
-        seed=seed,
-        warmup=warmup,
-        progress=progress,
-    )
-    title = f"{args['backend']}, walk={walk or 'backend default'}, randomization={args['randomization']}"
+    try:  # a bad backend.KEY value fails when the backend is built, before the first trial
+        cells, seconds = cap.timed_map(
+            args["backend"],
+            walk=walk,
+            randomization=args["randomization"],
+            grid=args["grid"],
+            repeats=repeats,
+            seed=seed,
+            warmup=warmup,
+            progress=progress,
+            backend_overrides=backend_overrides,
+        )
+    except ValueError as err:
+        raise SystemExit(f"{COMMAND}: {err}") from None
+    settings = "".join(f", {key}={value}" for key, value in backend_overrides.items())
+    title = f"{args['backend']}{settings}, walk={walk or 'backend default'}, randomization={args['randomization']}"
     csv_path, png_path = cap.write_map(cells, out, title)
     print(f"{title}: {len(cells)} cells x {repeats} repeats in {seconds:.0f} s")
     print(cap.summary_text(cells))

@@ -20,15 +20,15 @@ COMMAND = "footsim-walkcheck"
 GROUPS = ("backend", "walk", "robot")
 
 
-def split_overrides(argv: list[str]) -> tuple[list[str], dict[str, dict]]:
+def split_overrides(argv: list[str], groups_taken: tuple[str, ...] = GROUPS) -> tuple[list[str], dict[str, dict]]:
     """``(the tool's own key=value arguments, {group: {key: value}})`` from ``group.key=value``
-    arguments (values parsed as YAML, as Hydra does)."""
+    arguments of the groups ``groups_taken`` (values parsed as YAML, as Hydra does)."""
     own: list[str] = []
-    groups: dict[str, dict] = {g: {} for g in GROUPS}
+    groups: dict[str, dict] = {g: {} for g in groups_taken}
     for arg in argv:
         key, sep, value = arg.partition("=")
         group, dot, field = key.partition(".")
-        if sep and dot and group in GROUPS and field:
+        if sep and dot and group in groups and field:
             parsed = OmegaConf.to_container(OmegaConf.create(f"v: {value}"))  # YAML values, as Hydra reads them
             groups[group][field] = parsed["v"] if isinstance(parsed, dict) else value
         else:
