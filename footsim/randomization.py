@@ -29,6 +29,7 @@ TERMS = {
     # 3D physics
     "floor_friction": "scale of the floor's sliding friction",
     "foot_friction": "scale of the feet's sliding friction",
+    "rolling_friction_scale": "scale of the foot-floor contacts' rolling friction (a torque arm [m] · normal force)",
     "link_mass_scale": "scale of every link mass and inertia (one factor for all links)",
     "torso_com_offset_x": "torso centre-of-mass shift along x [m]",
     "torso_com_offset_y": "torso centre-of-mass shift along y [m]",

@@ -3,6 +3,7 @@ import math
 import numpy as np
 import pytest
 
+from footsim import config as fconf
 from footsim.env import FootstepEnv
 from footsim.randomization import Randomizer, TermSpec, parse_terms
 
@@ -104,3 +105,11 @@ def test_presets_load_and_none_reports_nothing():
     _, info = FootstepEnv(randomization="none").reset(seed=0)
     assert "randomization" not in info
     FootstepEnv(randomization="strong").reset(seed=0)
+
+
+def test_the_rolling_preset_is_default_plus_the_rolling_friction():
+    default, rolling = (fconf.load_preset("randomization", n) for n in ("default", "rolling"))
+    assert rolling["terms_2d"] == default["terms_2d"]
+    extra = {k: v for k, v in rolling["terms_3d"].items() if k not in default["terms_3d"]}
+    assert {k: v for k, v in rolling["terms_3d"].items() if k in default["terms_3d"]} == default["terms_3d"]
+    assert extra == {"rolling_friction_scale": {"dist": "loguniform", "low": 0.05, "high": 1.0}}

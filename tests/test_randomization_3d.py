@@ -102,6 +102,27 @@ def _foot_floor_friction(b):
     return float(np.mean(mus))
 
 
+def _foot_floor_rolling(b):
+    """The rolling friction [m] of a foot–floor contact, as the engine combines it."""
+    if _is_bullet(b):
+        import pybullet as p
+
+        s = b.sim
+        floor = p.getDynamicsInfo(s.floor_id, -1, physicsClientId=s.client)
+        foot = p.getDynamicsInfo(s.robot_id, s.link_index["l_foot"], physicsClientId=s.client)
+        return floor[6] * foot[1] + foot[6] * floor[1]  # Bullet's combination rule (rolling · lateral)
+    model, data = b.sim.mj_model_data()
+    nominal = b.sim.mj_nominal()
+    feet = set(nominal.foot_geoms.tolist())
+    rolls = [
+        data.contact.friction[i, 3]  # (slide, slide, torsional, roll, roll)
+        for i in range(data.ncon)
+        if nominal.floor_geom in data.contact.geom[i] and feet & set(data.contact.geom[i].tolist())
+    ]
+    assert rolls, "no foot-floor contact"
+    return float(np.mean(rolls))
+
+
 def _pitch(b):
     _, rot = b.sim.base_pose()
     return math.asin(-rot[2, 0])
@@ -161,6 +182,19 @@ def test_friction_scales_the_contact_friction_and_the_sliding_under_a_push(env):
         slides[term] = _feet_x(b) - x0
     assert abs(slides[None]) < 0.01, slides  # the feet (nearly) stick
     assert slides["floor_friction"] > 0.03 and slides["foot_friction"] > 0.03, slides
+
+
+def test_rolling_friction_scale_scales_the_contacts_rolling_friction(env):
+    b = env.backend
+    nominal = _foot_floor_rolling(_fresh(b))
+    assert nominal == pytest.approx(0.1 if _is_bullet(b) else 1e-4, rel=1e-6)  # the backends' presets
+    for _ in range(2):  # does not compound
+        _fresh(b, {"rolling_friction_scale": 0.25})
+        b.hold(0.02)
+        assert _foot_floor_rolling(b) == pytest.approx(0.25 * nominal, rel=1e-6)
+    _fresh(b)
+    b.hold(0.02)
+    assert _foot_floor_rolling(b) == pytest.approx(nominal, rel=1e-9)
 
 
 def test_actuator_kp_and_torque_limit_and_damping_change_the_servos(env):

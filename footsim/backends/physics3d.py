@@ -55,6 +55,7 @@ PHYSICS_TERMS = frozenset(
     {
         "floor_friction",
         "foot_friction",
+        "rolling_friction_scale",
         "link_mass_scale",
         "torso_com_offset_x",
         "torso_com_offset_y",

@@ -610,6 +610,9 @@ class PybulletSim(PhysicsSim):
 
         * friction: Bullet multiplies the two bodies' lateral friction, so the floor's and the
           feet's coefficients are scaled separately (contact: nominal · floor · foot).
+        * ``rolling_friction_scale``: the floor's rolling friction (the feet carry none; Bullet
+          combines it as floor rolling · foot lateral, so the contact's torque arm is nominal ·
+          this · foot_friction).
         * ``link_mass_scale``: mass and inertia diagonal of every link, one factor (the inertia
           includes the armature folded into the leg links, so it scales with them).
         * ``actuator_kp_scale`` / ``joint_damping_scale``: the servo's kp and kd in the motor
@@ -640,7 +643,11 @@ class PybulletSim(PhysicsSim):
                 body, link, mass=m * mass, localInertiaDiagonal=[v * mass for v in inertia], physicsClientId=c
             )
         p.changeDynamics(
-            self.floor_id, -1, lateralFriction=self.lateral_friction * scale("floor_friction"), physicsClientId=c
+            self.floor_id,
+            -1,
+            lateralFriction=self.lateral_friction * scale("floor_friction"),
+            rollingFriction=self.rolling_friction * scale("rolling_friction_scale"),
+            physicsClientId=c,
         )
         for foot in ("l_foot", "r_foot"):
             if foot in self.link_index:

@@ -23,6 +23,10 @@ What each term edits:
   feet's remaining friction components are the nominal max of foot and floor, so at scale 1
   the contacts are the nominal ones.  (Caveat: a foot touching an obstacle also sees the
   floor factor.)
+* ``rolling_friction_scale`` — the feet's rolling friction (``geom_friction[:, 2]``, with the
+  same priorities: the contact's is the nominal max of foot and floor × this).  MuJoCo uses it
+  only in contacts of condim 6, i.e. with ``backend.rolling_friction`` set; at FootstepNav-v1's
+  condim 3 the term changes a coefficient no contact uses.
 * ``terrain_slope`` — the floor plane's ``geom_quat``: tilted by the value [rad] about the
   horizontal axis perpendicular to ``terrain_slope_direction`` (the downhill azimuth), through
   the origin.  Obstacles stay vertical.
@@ -43,7 +47,7 @@ if TYPE_CHECKING:
     from footsim.backends.control import ServoFeedForward
     from footsim.robots.spec import RobotSpec
 
-_FRICTION_TERMS = ("floor_friction", "foot_friction")
+_FRICTION_TERMS = ("floor_friction", "foot_friction", "rolling_friction_scale")
 _MASS_TERMS = ("link_mass_scale", "torso_com_offset_x", "torso_com_offset_y")
 
 
@@ -161,6 +165,7 @@ def apply(model, nominal: MujocoNominal, values: dict[str, float], mujoco) -> No
         floor = n.geom_friction[-1]
         feet = np.maximum(n.geom_friction[:-1], floor)  # the nominal max combination
         feet[:, 0] *= floor_scale * foot_scale
+        feet[:, 2] *= _positive(values, "rolling_friction_scale")
         friction[:-1] = feet
         friction[-1, 0] = floor[0] * floor_scale
         top = int(n.geom_priority.max())
