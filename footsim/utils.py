@@ -57,6 +57,24 @@ def parse_kv_args(argv: list[str], allowed: dict[str, object], command: str) -> 
     return out
 
 
+def split_overrides(argv: list[str], groups_taken: tuple[str, ...]) -> tuple[list[str], dict[str, dict]]:
+    """``(the tool's own key=value arguments, {group: {key: value}})`` from ``group.key=value``
+    arguments of the groups ``groups_taken`` (values parsed as YAML, as Hydra does)."""
+    own: list[str] = []
+    groups: dict[str, dict] = {g: {} for g in groups_taken}
+    for arg in argv:
+        key, sep, value = arg.partition("=")
+        group, dot, field = key.partition(".")
+        if sep and dot and group in groups and field:
+            from omegaconf import OmegaConf  # only the command-line tools parse overrides
+
+            parsed = OmegaConf.to_container(OmegaConf.create(f"v: {value}"))  # YAML values, as Hydra reads them
+            groups[group][field] = parsed["v"] if isinstance(parsed, dict) else value
+        else:
+            own.append(arg)
+    return own, groups
+
+
 def note_not_honoured(cause: str, used: str, ignored: str) -> None:
     """Say on stdout, in one line, that a command line's request is not taken as given: ``cause``
     (what decides, e.g. ``resume`` or ``backend=mujoco``), what is ``used`` instead, and what is

@@ -15,8 +15,7 @@ from pathlib import Path
 from footsim import config as fconf
 from footsim.backends.base import require_known_backends
 from footsim.calibration import capability as cap
-from footsim.tools.walkcheck import split_overrides
-from footsim.utils import parse_kv_args
+from footsim.utils import parse_kv_args, split_overrides
 
 COMMAND = "footsim-capability"
 
@@ -62,7 +61,7 @@ def main(argv: list[str] | None = None) -> None:
     walk = args["walk"] or None
     try:  # every argument checked before the first trial
         cap.capability_grid(args["grid"])
-        if backend_overrides:  # the backend's own check: known keys, valid values
+        if backend_overrides:  # the backend's own key check (its values are checked when it is built)
             fconf.env_config(backend={"name": args["backend"], **backend_overrides})
         if walk is not None:
             fconf.load_preset("walk", walk)

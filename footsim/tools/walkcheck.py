@@ -10,30 +10,11 @@ from __future__ import annotations
 import datetime
 import sys
 
-from omegaconf import OmegaConf
-
 from footsim.backends.base import require_known_backends
 from footsim.calibration.walkcheck import timestep_convergence, walkcheck
-from footsim.utils import atomic_write_text, parse_kv_args
+from footsim.utils import atomic_write_text, parse_kv_args, split_overrides
 
 COMMAND = "footsim-walkcheck"
-GROUPS = ("backend", "walk", "robot")
-
-
-def split_overrides(argv: list[str], groups_taken: tuple[str, ...] = GROUPS) -> tuple[list[str], dict[str, dict]]:
-    """``(the tool's own key=value arguments, {group: {key: value}})`` from ``group.key=value``
-    arguments of the groups ``groups_taken`` (values parsed as YAML, as Hydra does)."""
-    own: list[str] = []
-    groups: dict[str, dict] = {g: {} for g in groups_taken}
-    for arg in argv:
-        key, sep, value = arg.partition("=")
-        group, dot, field = key.partition(".")
-        if sep and dot and group in groups and field:
-            parsed = OmegaConf.to_container(OmegaConf.create(f"v: {value}"))  # YAML values, as Hydra reads them
-            groups[group][field] = parsed["v"] if isinstance(parsed, dict) else value
-        else:
-            own.append(arg)
-    return own, groups
 
 
 def header(argv: list[str], walk_name: str, backends: list[str], backend_overrides: dict, convergence: bool) -> str:
@@ -62,7 +43,7 @@ def header(argv: list[str], walk_name: str, backends: list[str], backend_overrid
 
 def main(argv: list[str] | None = None) -> None:
     argv = sys.argv[1:] if argv is None else argv
-    own, overrides = split_overrides(argv)
+    own, overrides = split_overrides(argv, ("backend", "walk", "robot"))
     args = parse_kv_args(
         own,
         {"backends": "mujoco,dm_control,pybullet", "walk": "", "robot": "", "convergence": "false", "out": ""},
