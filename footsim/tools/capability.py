@@ -61,8 +61,6 @@ def main(argv: list[str] | None = None) -> None:
     walk = args["walk"] or None
     try:  # every argument checked before the first trial
         cap.capability_grid(args["grid"])
-        if backend_overrides:  # the backend's own key check (its values are checked when it is built)
-            fconf.env_config(backend={"name": args["backend"], **backend_overrides})
         if walk is not None:
             fconf.load_preset("walk", walk)
         fconf.load_preset("randomization", args["randomization"])
@@ -74,7 +72,7 @@ def main(argv: list[str] | None = None) -> None:
         if done == total or done % 25 == 0:
             print(f"{done}/{total} cells", flush=True)
 
-    try:  # a bad backend.KEY value fails when the backend is built, before the first trial
+    try:  # a bad backend.KEY (unknown key or value) fails when the backend is built, before the first trial
         cells, seconds = cap.timed_map(
             args["backend"],
             walk=walk,
