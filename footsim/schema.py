@@ -93,6 +93,8 @@ class MujocoBackendConfig(Physics3DConfig):
     servo_force_limit: Optional[float] = MISSING
     joint_ref: Dict[str, float] = MISSING
     contact_solref: Optional[List[float]] = MISSING
+    friction_cone: str = MISSING
+    impratio: float = MISSING
     obstacle_inflation: float = MISSING
     max_render_size: int = MISSING
 

@@ -11,6 +11,7 @@ import pytest
 
 pytest.importorskip("dm_control")
 
+import mujoco  # noqa: E402
 from dm_control import mjcf  # noqa: E402
 
 import footsim  # noqa: E402,F401  (registers the env)
@@ -134,6 +135,7 @@ def test_model_options_match_the_mujoco_backend(backend):
             "integrator",
         )
     }
+    options.update(friction_cone="elliptic", impratio=10.0)  # not in any preset: set here
     mine = DmControlBackend(backend.robot, backend.walk, **options)
     ours = mine.sim.physics.model.ptr
     theirs = MujocoBackend(backend.robot, backend.walk, **options)  # the MuJoCo backend given the same options
@@ -152,6 +154,8 @@ def test_model_options_match_the_mujoco_backend(backend):
         ):
             np.testing.assert_allclose(getattr(ours, field), getattr(ref, field), rtol=1e-5, err_msg=field)
         assert ours.opt.integrator == ref.opt.integrator and ours.opt.timestep == ref.opt.timestep
+        for opt in (ours.opt, ref.opt):
+            assert opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC and opt.impratio == 10.0
         feet = [
             mine.sim.physics.bind(g).element_id
             for s in ("left", "right")
@@ -167,6 +171,10 @@ def test_model_options_match_the_mujoco_backend(backend):
         DmControlBackend(backend.robot, backend.walk, servo_kp_scale=0.0)
     with pytest.raises(ValueError, match="integrator"):
         DmControlBackend(backend.robot, backend.walk, integrator="leapfrog")
+    with pytest.raises(ValueError, match="friction_cone"):
+        DmControlBackend(backend.robot, backend.walk, friction_cone="conical")
+    with pytest.raises(ValueError, match="impratio"):
+        DmControlBackend(backend.robot, backend.walk, impratio=0.5)
 
 
 def test_servo_kv_feeds_the_target_velocity_forward(backend):

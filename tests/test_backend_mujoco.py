@@ -320,3 +320,15 @@ def test_a_push_in_the_first_double_step_moves_the_robot_in_proportion_and_is_cl
         _, data = backend.sim.mj_model_data()
         assert not data.xfrc_applied.any()  # cleared after the first double step
     assert moved[0] > 1e-3 and 2.0 < moved[1] / moved[0] < 6.0
+
+
+def test_the_default_contact_options_are_mujocos_own():
+    """The preset's friction cone and impratio are MuJoCo's defaults (a model compiled from an
+    empty MJCF), as in the Bit-Bots' model, so setting them leaves the physics as it was."""
+    backend = make_backend("mujoco")
+    try:
+        empty = mujoco.MjModel.from_xml_string("<mujoco/>").opt
+        assert backend.sim.model.opt.cone == empty.cone == mujoco.mjtCone.mjCONE_PYRAMIDAL
+        assert backend.sim.model.opt.impratio == empty.impratio == 1.0
+    finally:
+        backend.close()

@@ -209,6 +209,7 @@ def draw_overlay(scene, overlay: RenderOverlay) -> None:
 
 
 INTEGRATORS = ("euler", "implicit", "implicitfast", "rk4")
+FRICTION_CONES = ("pyramidal", "elliptic")
 
 
 class MujocoModelOptions:
@@ -226,6 +227,8 @@ class MujocoModelOptions:
         servo_force_limit: float | None = None,
         joint_ref: Mapping[str, float] | None = None,
         contact_solref: Sequence[float] | None = None,
+        friction_cone: str = "pyramidal",
+        impratio: float = 1.0,
         obstacle_inflation: float = 0.0,
         control_dt: float = 0.01,
         rigid_upper_body: bool = True,
@@ -253,6 +256,15 @@ class MujocoModelOptions:
             contact_solref = solref
         # MuJoCo's contact softness of every geom (the MJCF's value when null: footsim.robots.mjcf).
         self.contact_solref = contact_solref
+        # MuJoCo's friction cone and the ratio of frictional to normal constraint impedance: an
+        # elliptic cone with impratio > 1 is MuJoCo's documented way to make contacts slip less.
+        if friction_cone not in FRICTION_CONES:
+            raise ValueError(f"backend.friction_cone must be one of {', '.join(FRICTION_CONES)}; got {friction_cone!r}")
+        self.friction_cone = friction_cone
+        number = isinstance(impratio, (int, float)) and not isinstance(impratio, bool)
+        if not (number and math.isfinite(impratio) and impratio >= 1):
+            raise ValueError(f"backend.impratio must be a number >= 1, got {impratio!r}")
+        self.impratio = float(impratio)
         ServoFeedForward(servo_kv, np.ones(1), control_dt)  # validates servo_kv and control_dt
         self.servo_kv, self.control_dt = float(servo_kv), float(control_dt)
         self._feed_forward: ServoFeedForward | None = None  # when servo_kv > 0
@@ -296,6 +308,8 @@ class MujocoModelOptions:
         name2id = mujoco.mj_name2id
         if self.contact_solref is not None:
             m.geom_solref[:] = self.contact_solref
+        m.opt.cone = getattr(mujoco.mjtCone, f"mjCONE_{self.friction_cone.upper()}")
+        m.opt.impratio = self.impratio
         self._foot_bodies = tuple(
             name2id(m, mujoco.mjtObj.mjOBJ_BODY, robot.foot_link(side)) for side in ("left", "right")
         )

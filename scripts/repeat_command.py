@@ -1,0 +1,84 @@
+"""One double-step command, repeated open loop: how far does a 3D backend's robot move per double step?
+
+    python scripts/repeat_command.py backend=mujoco action=0,0,0,0,0,0 [steps=12] [skip=2] [backend.KEY=VALUE ...]
+
+``action`` is the policy's 6-D action in [-1, 1] (right foot x, y, theta, then the left foot's, as
+fractions of the step limits).  The robot starts standing at the origin; the first ``skip`` double
+steps (the start from standing) are left out, and the displacement over the rest is reported per
+double step in the robot's frame at that point: forward and lateral [mm], turn [deg].  With a zero
+action this is the walk's creep when walking in place.  ``backend.KEY=VALUE`` overrides a backend
+option (YAML values: ``null``, numbers, lists).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+
+import footsim  # noqa: F401  (before NumPy loads: footsim pins OpenBLAS's kernels)
+
+# isort: split
+import numpy as np
+import yaml
+
+from footsim import config as fconf
+from footsim.geometry import Pose2D
+from footsim.scene import Scene
+from footsim.tasks.nav import tilted_over
+from footsim.walk.footsteps import DoubleStep
+
+
+def per_double_step(poses: list[Pose2D]) -> tuple[float, float, float]:
+    """Mean (forward [m], lateral [m], turn [rad]) per double step from ``poses[0]`` to ``poses[-1]``,
+    in the frame of ``poses[0]``."""
+    start, end, n = poses[0], poses[-1], len(poses) - 1
+    dx, dy = end.x - start.x, end.y - start.y
+    c, s = math.cos(start.theta), math.sin(start.theta)
+    turn = math.atan2(math.sin(end.theta - start.theta), math.cos(end.theta - start.theta))
+    return (c * dx + s * dy) / n, (-s * dx + c * dy) / n, turn / n
+
+
+def main(argv: list[str]) -> None:
+    args = {"backend": "mujoco", "action": "0,0,0,0,0,0", "steps": "12", "skip": "2"}
+    overrides = {}
+    for arg in argv:
+        key, sep, value = arg.partition("=")
+        if not sep:
+            raise SystemExit(f"expected key=value, got {arg!r}")
+        if key.startswith("backend."):
+            overrides[key.removeprefix("backend.")] = yaml.safe_load(value)
+        elif key in args:
+            args[key] = value
+        else:
+            raise SystemExit(f"unknown key {key!r}; keys: {sorted(args)} and backend.<option>")
+    action = [float(v) for v in args["action"].split(",")]
+    steps, skip = int(args["steps"]), int(args["skip"])
+    if len(action) != 6 or not all(-1.0 <= v <= 1.0 for v in action):
+        raise SystemExit(f"action must be 6 numbers in [-1, 1], got {args['action']!r}")
+    if not 0 <= skip < steps:
+        raise SystemExit(f"need 0 <= skip < steps, got skip={skip}, steps={steps}")
+    name = args["backend"]
+    walk = fconf.build_walk(fconf.load_preset("walk", backend=name))
+    backend = fconf.build_backend(
+        fconf.load_preset("backend", {"name": name, **overrides}), fconf.build_robot("wolfgang"), walk
+    )
+    try:
+        backend.reset(Scene(goal=Pose2D(100.0, 0.0, 0.0)), np.random.default_rng(0))
+        step = DoubleStep.from_action(action, backend.robot.step_limits)
+        poses = []
+        for i in range(steps):
+            result = backend.execute(step)
+            if tilted_over(result) or result.sim_error is not None:
+                raise SystemExit(f"{name} {overrides or ''}: the robot fell at double step {i + 1}")
+            poses.append(result.pose)
+    finally:
+        backend.close()
+    forward, lateral, turn = per_double_step(poses[skip - 1 :] if skip else [Pose2D(0.0, 0.0, 0.0), *poses])
+    print(
+        f"{name} {overrides or ''} action {action}: per double step over {steps - skip} double steps "
+        f"forward {1000 * forward:+.1f} mm, lateral {1000 * lateral:+.1f} mm, turn {math.degrees(turn):+.3f} deg"
+    )
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
