@@ -175,6 +175,8 @@ def test_backend_settings_reach_the_measured_backend(tmp_path, capsys):
         (["backend=nope"], ["unknown backend", "nope", "pymunk"]),
         (["backend=pymunk", "backend.colour=red"], ["backend pymunk", "unknown key", "'colour'"]),
         (["compare=a,b", "backend.physics_dt=0.001"], ["compare=", "backend.KEY=VALUE"]),
+        (["compare=a,b", "walk.trunk_pitch=0.3"], ["compare=", "walk.KEY=VALUE"]),
+        (["backend=pymunk", "walk.stride=2"], ["walk", "unknown key", "'stride'"]),
         (["backend=pymunk", "repeats=0"], ["repeats", "'0'"]),
         (["backend=pymunk", "seed=x"], ["seed", "'x'"]),
         (["backend=pymunk", "grid=same:1"], ["grid", "'1'"]),
@@ -205,6 +207,18 @@ def test_mujoco_map_of_three_forward_steps(tmp_path):
     assert (in_place.falls, in_place.landed) == (0, 1)
     # the soles land within a few centimetres and degrees of the footstep geometry's landing
     assert in_place.position_error_mean < 0.03 and in_place.yaw_error_mean < math.radians(5)
+
+
+@pytest.mark.slow
+def test_walk_settings_reach_the_measured_backend(tmp_path, capsys):
+    # MuJoCo's robot walks in place on bitbots_sim (the walk check's required "in place"); with the
+    # trunk leaning 0.45 rad forward it falls within two double steps (docs/walkcheck/mujoco_creep.md).
+    pytest.importorskip("mujoco")
+    for name, extra in (("upright", []), ("leaning", ["walk.trunk_pitch=0.45"])):
+        main(["backend=mujoco", "grid=x:0/y:0/theta:0", "repeats=1", *extra, f"out={tmp_path / name}"])
+    assert "walk=backend default, trunk_pitch=0.45" in capsys.readouterr().out
+    upright, leaning = cap.read_map(tmp_path / "upright"), cap.read_map(tmp_path / "leaning")
+    assert (upright[0].falls, leaning[0].falls) == (0, 1)
 
 
 def test_the_x_y_panels_together_show_every_same_step_cell():

@@ -349,10 +349,11 @@ def summary_text(cells: Sequence[Cell]) -> str:
     )
 
 
-def make_backend(backend: str, walk: str | None = None, backend_overrides: Mapping | None = None) -> Backend:
+def make_backend(backend: str, walk: str | Mapping | None = None, backend_overrides: Mapping | None = None) -> Backend:
     """The backend as :func:`footsim.calibration.walkcheck.make_backend` builds it (the
-    backend's own walk preset), or with the walk preset ``walk``; ``backend_overrides`` over its
-    config (e.g. ``{"rolling_friction": 0.0}``)."""
+    backend's own walk preset), or with the walk ``walk`` (a preset name, or a mapping of walk keys
+    over a preset, e.g. ``{"trunk_pitch": 0.3}``); ``backend_overrides`` over its config (e.g.
+    ``{"rolling_friction": 0.0}``)."""
     from footsim.calibration.walkcheck import make_backend as walkcheck_backend
 
     return walkcheck_backend(backend, walk, backend_overrides=backend_overrides)
@@ -361,7 +362,7 @@ def make_backend(backend: str, walk: str | None = None, backend_overrides: Mappi
 def capability_map(
     backend: str,
     *,
-    walk: str | None = None,
+    walk: str | Mapping | None = None,
     randomization: str | None = None,
     grid: str = DEFAULT_GRID,
     repeats: int = 2,

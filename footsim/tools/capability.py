@@ -1,8 +1,9 @@
 """``footsim-capability backend=B [walk=W] [randomization=R] [grid=same:5] [repeats=2] [seed=0]
-[warmup=2] [backend.KEY=VALUE ...] [out=DIR]``: the capability map of a backend
+[warmup=2] [backend.KEY=VALUE ...] [walk.KEY=VALUE ...] [out=DIR]``: the capability map of a backend
 (:mod:`footsim.calibration.capability`): ``DIR/capability.csv`` and ``DIR/capability.png`` (default
-``DIR`` = ``capability_<backend>``).  ``backend.KEY=VALUE`` overrides a key of the backend's config
-(e.g. ``backend.rolling_friction=0``), as in ``footsim-walkcheck``.
+``DIR`` = ``capability_<backend>``).  ``backend.KEY=VALUE`` and ``walk.KEY=VALUE`` override a key of
+the backend's config (e.g. ``backend.rolling_friction=0``) and of the walk (e.g.
+``walk.trunk_pitch=0.3``), as in ``footsim-walkcheck``.
 
 ``footsim-capability compare=DIR_A,DIR_B [out=FILE.png]``: where two maps disagree (default
 ``FILE`` = ``capability_compare.png``)."""
@@ -32,8 +33,8 @@ def _whole(args: dict, key: str, minimum: int) -> int:
 
 
 def main(argv: list[str] | None = None) -> None:
-    own, groups = split_overrides(sys.argv[1:] if argv is None else argv, ("backend",))
-    backend_overrides = groups["backend"]
+    own, groups = split_overrides(sys.argv[1:] if argv is None else argv, ("backend", "walk"))
+    backend_overrides, walk_overrides = groups["backend"], groups["walk"]
     args = parse_kv_args(
         own,
         {
@@ -50,19 +51,22 @@ def main(argv: list[str] | None = None) -> None:
         COMMAND,
     )
     if args["compare"]:
-        if backend_overrides:
-            raise SystemExit(f"{COMMAND}: compare= reads two maps; backend.KEY=VALUE applies to measuring one")
+        if backend_overrides or walk_overrides:
+            raise SystemExit(
+                f"{COMMAND}: compare= reads two maps; backend.KEY=VALUE and walk.KEY=VALUE apply to measuring one"
+            )
         _compare(args)
         return
     if not args["backend"]:
         raise SystemExit(f"{COMMAND}: give backend=NAME (or compare=DIR_A,DIR_B)")
     require_known_backends([args["backend"]], COMMAND)
     repeats, seed, warmup = _whole(args, "repeats", 1), _whole(args, "seed", 0), _whole(args, "warmup", 0)
-    walk = args["walk"] or None
+    walk_name = args["walk"] or None
+    walk = {**({"name": walk_name} if walk_name else {}), **walk_overrides} or None
     try:  # every argument checked before the first trial
         cap.capability_grid(args["grid"])
-        if walk is not None:
-            fconf.load_preset("walk", walk)
+        if walk_name is not None:
+            fconf.load_preset("walk", walk_name)
         fconf.load_preset("randomization", args["randomization"])
     except ValueError as err:
         raise SystemExit(f"{COMMAND}: {err}") from None
@@ -72,7 +76,7 @@ def main(argv: list[str] | None = None) -> None:
         if done == total or done % 25 == 0:
             print(f"{done}/{total} cells", flush=True)
 
-    try:  # a bad backend.KEY (unknown key or value) fails when the backend is built, before the first trial
+    try:  # a bad backend.KEY or walk.KEY (unknown key or value) fails when the backend is built, before the first trial
         cells, seconds = cap.timed_map(
             args["backend"],
             walk=walk,
@@ -87,7 +91,11 @@ def main(argv: list[str] | None = None) -> None:
     except ValueError as err:
         raise SystemExit(f"{COMMAND}: {err}") from None
     settings = "".join(f", {key}={value}" for key, value in backend_overrides.items())
-    title = f"{args['backend']}{settings}, walk={walk or 'backend default'}, randomization={args['randomization']}"
+    walk_settings = "".join(f", {key}={value}" for key, value in walk_overrides.items())
+    title = (
+        f"{args['backend']}{settings}, walk={walk_name or 'backend default'}{walk_settings}, "
+        f"randomization={args['randomization']}"
+    )
     csv_path, png_path = cap.write_map(cells, out, title)
     print(f"{title}: {len(cells)} cells x {repeats} repeats in {seconds:.0f} s")
     print(cap.summary_text(cells))
