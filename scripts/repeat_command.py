@@ -19,12 +19,12 @@ import footsim  # noqa: F401  (before NumPy loads: footsim pins OpenBLAS's kerne
 
 # isort: split
 import numpy as np
-import yaml
 
 from footsim import config as fconf
 from footsim.geometry import Pose2D
 from footsim.scene import Scene
 from footsim.tasks.nav import tilted_over
+from footsim.utils import parse_kv_args, split_overrides
 from footsim.walk.footsteps import DoubleStep
 
 
@@ -39,18 +39,10 @@ def per_double_step(poses: list[Pose2D]) -> tuple[float, float, float]:
 
 
 def main(argv: list[str]) -> None:
-    args = {"backend": "mujoco", "action": "0,0,0,0,0,0", "steps": "12", "skip": "2"}
-    overrides = {}
-    for arg in argv:
-        key, sep, value = arg.partition("=")
-        if not sep:
-            raise SystemExit(f"expected key=value, got {arg!r}")
-        if key.startswith("backend."):
-            overrides[key.removeprefix("backend.")] = yaml.safe_load(value)
-        elif key in args:
-            args[key] = value
-        else:
-            raise SystemExit(f"unknown key {key!r}; keys: {sorted(args)} and backend.<option>")
+    own, groups = split_overrides(argv, ("backend",))
+    overrides = groups["backend"]
+    defaults = {"backend": "mujoco", "action": "0,0,0,0,0,0", "steps": "12", "skip": "2"}
+    args = parse_kv_args(own, defaults, "repeat_command.py")
     action = [float(v) for v in args["action"].split(",")]
     steps, skip = int(args["steps"]), int(args["skip"])
     if len(action) != 6 or not all(-1.0 <= v <= 1.0 for v in action):
