@@ -258,14 +258,15 @@ class EvalSection:
 
 @dataclass
 class EvalAppConfig:
-    """``footsim-eval``'s own keys; its groups (controller, and the backend, task, noise and
-    randomization that replace a run's) are composed into the ``Any`` fields, None when unset."""
+    """``footsim-eval``'s own keys; its groups (controller, and the backend, task, noise,
+    randomization and walk that replace a run's) are composed into the ``Any`` fields, None when unset."""
 
     controller: Any = None
     backend: Any = None
     task: Any = None
     noise: Any = None
     randomization: Any = None
+    walk: Any = None
     run: Optional[str] = MISSING
     scenes: Optional[str] = MISSING
     n_scenes: int = MISSING

@@ -147,6 +147,33 @@ def test_eval_says_what_it_uses_instead_of_what_it_does_not_take_as_given(tiny_r
     assert f"controller=velocity: evaluating the baseline; ignoring run={nav_run}" in out
 
 
+@pytest.mark.xdist_group("tiny_runs")
+def test_eval_walk_replaces_the_runs_walk(tiny_runs, tmp_path, capsys):
+    from omegaconf import OmegaConf
+
+    from footsim.config import conf_dir
+    from footsim.rl.evaluate import eval_run_config
+
+    nav_run = tiny_runs("ppo", "agent=ppo")
+    preset = OmegaConf.load(conf_dir() / "walk/bitbots_sim.yaml")  # the file, read without footsim
+    # as Hydra composes walk=bitbots_sim walk.trunk_pitch=0.3: the preset's keys, one changed
+    walk = {k: v for k, v in OmegaConf.to_container(preset).items() if k != "defaults"}
+    asked = {"backend": {"name": "mujoco"}, "walk": {**walk, "trunk_pitch": 0.3}}
+    run_cfg = eval_run_config(nav_run, OmegaConf.create(asked))
+    assert capsys.readouterr().out == ""  # the walk is as asked: no note about the backend's preset
+    assert run_cfg.walk.trunk_pitch == 0.3 and preset.trunk_pitch != 0.3
+    assert run_cfg.walk.freq == preset.freq and run_cfg.backend.name == "mujoco"
+
+    # through the command line: walk.KEY over the preset; an unknown walk key fails naming it
+    out = tmp_path / "walk"
+    run("footsim-eval", f"run={nav_run}", "walk=bitbots_sim", "walk.trunk_pitch=0.3", "n_scenes=1", "plot=false",
+        f"hydra.run.dir={out}")  # fmt: skip
+    assert (out / "episodes.csv").is_file()
+    proc = run("footsim-eval", f"run={nav_run}", "walk=bitbots_sim", "+walk.stride=2", "n_scenes=1", "plot=false",
+               f"hydra.run.dir={tmp_path / 'bad'}", check=False)  # fmt: skip
+    assert proc.returncode != 0 and "stride" in proc.stdout + proc.stderr
+
+
 def test_baseline_evaluation_applies_the_randomization_preset(tmp_path):
     finals = {}
     for preset in ("none", "default"):

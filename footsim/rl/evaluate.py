@@ -436,12 +436,13 @@ def _conditions(backend: str, task: str, noise: str, randomization: str | None) 
 
 def eval_run_config(run_dir: Path, cfg_eval) -> DictConfig:
     """The config ``footsim-eval run=RUN_DIR`` evaluates: the run's saved one, with the groups set
-    on the command line (``backend``, ``task``, ``noise``, ``randomization``; a mapping merges
-    over its preset) in place of the run's.
+    on the command line (``backend``, ``task``, ``noise``, ``randomization``, ``walk``; a mapping
+    merges over its preset) in place of the run's.
 
     On another backend the policy walks with that backend's walk preset (:func:`walk_on_backend`),
-    and a note says so when that differs from the run's walk.  A task whose observation differs
-    from the run's (rays, IMU, path hint) is refused: the policy cannot read it.
+    and a note says so when that differs from the run's walk; ``walk=W`` (e.g. ``walk=bitbots_sim
+    walk.trunk_pitch=0.3``) sets the walk instead.  A task whose observation differs from the run's
+    (rays, IMU, path hint) is refused: the policy cannot read it.
     """
     run_cfg = load_run_config(run_dir)
     OmegaConf.set_struct(run_cfg, False)
@@ -456,7 +457,9 @@ def eval_run_config(run_dir: Path, cfg_eval) -> DictConfig:
                 f"{_layout_text(asked)}. Leave task= out to evaluate on the run's task."
             )
         run_cfg.task = task
-    if cfg_eval.get("backend") is not None:
+    if cfg_eval.get("walk") is not None:
+        run_cfg.walk = fconf.load_preset("walk", cfg_eval.walk)
+    elif cfg_eval.get("backend") is not None:
         name = cfg_eval.backend.name
         walk, differing = walk_on_backend(run_cfg, name)
         if differing:
