@@ -75,6 +75,14 @@ def split_overrides(argv: list[str], groups_taken: tuple[str, ...]) -> tuple[lis
     return own, groups
 
 
+def preset_choice(name: str, overrides: dict) -> str | dict | None:
+    """A config group's choice from a tool's ``group=NAME`` and ``group.KEY=VALUE`` arguments: the
+    preset's name, a mapping of keys over it (with ``name`` when given), or None (the default)."""
+    if not overrides:
+        return name or None
+    return {**({"name": name} if name else {}), **overrides}
+
+
 def note_not_honoured(cause: str, used: str, ignored: str) -> None:
     """Say on stdout, in one line, that a command line's request is not taken as given: ``cause``
     (what decides, e.g. ``resume`` or ``backend=mujoco``), what is ``used`` instead, and what is

@@ -20,7 +20,7 @@ import footsim  # noqa: F401  (before NumPy loads: footsim pins OpenBLAS's kerne
 # isort: split
 import numpy as np
 
-from footsim import config as fconf
+from footsim.calibration.walkcheck import make_backend
 from footsim.geometry import Pose2D
 from footsim.scene import Scene
 from footsim.tasks.nav import tilted_over
@@ -50,14 +50,11 @@ def main(argv: list[str]) -> None:
     if not 0 <= skip < steps:
         raise SystemExit(f"need 0 <= skip < steps, got skip={skip}, steps={steps}")
     name = args["backend"]
-    walk = fconf.build_walk(fconf.load_preset("walk", backend=name))
-    backend = fconf.build_backend(
-        fconf.load_preset("backend", {"name": name, **overrides}), fconf.build_robot("wolfgang"), walk
-    )
+    backend = make_backend(name, backend_overrides=overrides)  # its own walk preset, the Wolfgang-OP
     try:
         backend.reset(Scene(goal=Pose2D(100.0, 0.0, 0.0)), np.random.default_rng(0))
         step = DoubleStep.from_action(action, backend.robot.step_limits)
-        poses = []
+        poses = [Pose2D(0.0, 0.0, 0.0)]  # the start; poses[k]: after double step k
         for i in range(steps):
             result = backend.execute(step)
             if tilted_over(result) or result.sim_error is not None:
@@ -65,7 +62,7 @@ def main(argv: list[str]) -> None:
             poses.append(result.pose)
     finally:
         backend.close()
-    forward, lateral, turn = per_double_step(poses[skip - 1 :] if skip else [Pose2D(0.0, 0.0, 0.0), *poses])
+    forward, lateral, turn = per_double_step(poses[skip:])
     print(
         f"{name} {overrides or ''} action {action}: per double step over {steps - skip} double steps "
         f"forward {1000 * forward:+.1f} mm, lateral {1000 * lateral:+.1f} mm, turn {math.degrees(turn):+.3f} deg"

@@ -16,7 +16,7 @@ from pathlib import Path
 from footsim import config as fconf
 from footsim.backends.base import require_known_backends
 from footsim.calibration import capability as cap
-from footsim.utils import parse_kv_args, split_overrides
+from footsim.utils import parse_kv_args, preset_choice, split_overrides
 
 COMMAND = "footsim-capability"
 
@@ -62,7 +62,7 @@ def main(argv: list[str] | None = None) -> None:
     require_known_backends([args["backend"]], COMMAND)
     repeats, seed, warmup = _whole(args, "repeats", 1), _whole(args, "seed", 0), _whole(args, "warmup", 0)
     walk_name = args["walk"] or None
-    walk = {**({"name": walk_name} if walk_name else {}), **walk_overrides} or None
+    walk = preset_choice(args["walk"], walk_overrides)
     try:  # every argument checked before the first trial
         cap.capability_grid(args["grid"])
         if walk_name is not None:

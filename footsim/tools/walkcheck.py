@@ -12,7 +12,7 @@ import sys
 
 from footsim.backends.base import require_known_backends
 from footsim.calibration.walkcheck import timestep_convergence, walkcheck
-from footsim.utils import atomic_write_text, parse_kv_args, split_overrides
+from footsim.utils import atomic_write_text, parse_kv_args, preset_choice, split_overrides
 
 COMMAND = "footsim-walkcheck"
 
@@ -54,10 +54,8 @@ def main(argv: list[str] | None = None) -> None:
     backends = [b for b in backends if b != "pymunk"]  # the consistency report adds 2D itself
     if args["convergence"] not in ("true", "false"):
         raise SystemExit(f"{COMMAND}: convergence must be true or false, got {args['convergence']!r}")
-    walk = {**({"name": args["walk"]} if args["walk"] else {}), **overrides["walk"]} or None
-    robot = {**({"name": args["robot"]} if args["robot"] else {}), **overrides["robot"]} or None
-    if isinstance(walk, dict) and set(walk) == {"name"}:
-        walk = walk["name"]
+    walk = preset_choice(args["walk"], overrides["walk"])
+    robot = preset_choice(args["robot"], overrides["robot"])
     try:
         _, table = walkcheck(backends, walk, robot, overrides["backend"])
         if args["convergence"] == "true":
