@@ -2,6 +2,7 @@
 
 import csv
 import json
+import re
 import subprocess
 import sys
 import zipfile
@@ -172,6 +173,21 @@ def test_eval_walk_replaces_the_runs_walk(tiny_runs, tmp_path, capsys):
     proc = run("footsim-eval", f"run={nav_run}", "walk=bitbots_sim", "+walk.stride=2", "n_scenes=1", "plot=false",
                f"hydra.run.dir={tmp_path / 'bad'}", check=False)  # fmt: skip
     assert proc.returncode != 0 and "stride" in proc.stdout + proc.stderr
+    # walk.KEY without walk=W: a message that says what to add, not Hydra's "not in struct"
+    proc = run("footsim-eval", f"run={nav_run}", "walk.trunk_pitch=0.3", "n_scenes=1", "plot=false",
+               f"hydra.run.dir={tmp_path / 'bare'}", check=False)  # fmt: skip
+    assert proc.returncode != 0 and "walk.trunk_pitch=0.3 needs walk=NAME beside it" in proc.stderr
+    assert "not in struct" not in proc.stderr and not (tmp_path / "bare").exists()
+
+
+@pytest.mark.parametrize("arg", ["backend.collision_model=nav_distance", "+noise.sigma_x=0.1", "task.n_rays=8"])
+def test_eval_group_keys_need_the_group_named(arg):
+    from footsim.tools.evaluate import check_group_overrides
+
+    group = arg.lstrip("+").split(".")[0]
+    with pytest.raises(SystemExit, match=rf"{re.escape(arg)} needs {group}=NAME beside it"):
+        check_group_overrides(["run=r", arg])
+    check_group_overrides(["run=r", f"{group}=x", arg, "hydra.run.dir=d", "n_scenes=3"])  # named: passes
 
 
 def test_baseline_evaluation_applies_the_randomization_preset(tmp_path):

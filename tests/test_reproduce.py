@@ -18,6 +18,7 @@ import pytest
 from footsim import config as fconf
 from footsim import zoo
 from footsim.results import reproduce as rp
+from footsim.rl.common import load_run_config
 from footsim.tools.reproduce import main as reproduce_main
 from footsim.tools.reproduce import parse_args
 
@@ -185,9 +186,12 @@ def test_footsim_reproduce_alone_checks_each_zoo_policy_on_the_standard_set(tmp_
     policies = {j.name for j in jobs if j.kind == "policy"}
     assert policies == set(zoo.names())  # every shipped policy, each once, in its own condition
     assert all(j.condition == zoo.load_index()["entries"][j.name]["condition"] for j in jobs if j.kind == "policy")
-    assert {(j.condition, j.name) for j in jobs if j.kind == "baseline"} == {
-        (c, b) for b, conds in plan.baselines.items() for c in conds
-    }
+    # the baselines under those conditions, and each baseline under at least one of them (the ones under
+    # a condition that judges zoo policies another way, e.g. 2d_obst_beta_10m_thesis_collision, are kept)
+    own = {c.name for c in rp.select(plan, only)}
+    baselines = {(j.condition, j.name) for j in jobs if j.kind == "baseline"}
+    assert baselines == {(c, b) for b, conds in plan.baselines.items() for c in conds if c in own}
+    assert {b for _, b in baselines} == set(plan.baselines)
     # all=true: every condition on every set; only= or sets= alone: as given
     assert rp.scope(plan, None, None, everything=True) == (None, None)
     assert rp.scope(plan, "mj_nav", None, everything=False) == ("mj_nav", None)
@@ -908,3 +912,56 @@ def test_a_condition_can_evaluate_its_policies_with_the_beta_mean(tmp_path, monk
     }
     with pytest.raises(rp.PlanError, match=r"conditions\.nav_mean\.beta_action must be mode or mean, got 'median'"):
         rp.load_plan(_plan(tmp_path, body.replace("beta_action: mean", "beta_action: median")))
+
+
+def test_a_condition_can_evaluate_under_its_own_backend_settings(tmp_path, monkeypatch):
+    """``backend_settings`` of a condition go over the plan's and the command line's for its jobs only,
+    reach the env its policies and baselines run in, and a bad key fails naming the condition."""
+    body = BASE + (
+        "  nav_thesis:\n    backend: pymunk\n    task: nav\n    policies: nav\n"
+        "    backend_settings: {collision_model: nav_distance}\n"
+        "baselines: {velocity: [nav_thesis]}\n"
+    )
+    plan = rp.load_plan(_plan(tmp_path, body))
+    monkeypatch.setattr(rp.zoo, "names", lambda root: ["nav_s0", "nav_s1"])
+    monkeypatch.setattr(rp.zoo, "check_config", lambda name, root: None)
+    cli = {"pymunk": {"collision_distance": 0.2, "collision_model": "footprint"}}
+    jobs, _ = rp.plan_jobs(plan, list(plan.conditions.values()), tmp_path, None, ["standard"], True, cli)
+    settings = {(j.condition, j.kind): dict(j.backend_settings) for j in jobs}
+    assert settings[("nav", "policy")] == {"collision_distance": 0.2, "collision_model": "footprint"}
+    assert settings[("nav_thesis", "policy")] == {"collision_distance": 0.2, "collision_model": "nav_distance"}
+    assert settings[("nav_thesis", "baseline")] == settings[("nav_thesis", "policy")]
+    baseline = next(j for j in jobs if j.kind == "baseline")
+    env, _ = rp.job_env_and_controller(baseline, tmp_path)
+    try:
+        assert (env.backend.collision_model, env.backend.collision_distance) == ("nav_distance", 0.2)
+    finally:
+        env.close()
+    bad = body.replace("collision_model: nav_distance", "collision_modle: nav_distance")
+    with pytest.raises(rp.PlanError, match=r"conditions\.nav_thesis\.backend_settings: .*collision_modle"):
+        rp.load_plan(_plan(tmp_path, bad))
+    with pytest.raises(rp.PlanError, match=r"conditions\.nav_thesis\.backend_settings must be a mapping"):
+        rp.load_plan(_plan(tmp_path, body.replace("{collision_model: nav_distance}", "[nav_distance]")))
+
+
+def test_the_study_judges_the_2d_obstacle_policies_by_the_thesis_collision_check_too():
+    """The plan's thesis-check conditions evaluate the 2d_obst_beta_10m[_noise] zoo policies, and a
+    policy job's env takes pymunk's nav_distance check over the policy's recorded footprint check."""
+    plan = rp.load_plan()
+    for name, source in (
+        ("2d_obst_beta_10m_thesis_collision", "2d_obst_beta_10m"),
+        ("2d_obst_beta_10m_noise_thesis_collision", "2d_obst_beta_10m_noise"),
+    ):
+        cond = plan.conditions[name]
+        assert cond.source == source and dict(cond.backend_settings) == {"collision_model": "nav_distance"}
+    jobs, missing = rp.plan_jobs(
+        plan, rp.select(plan, "2d_obst_beta_10m_thesis_collision"), zoo.zoo_dir(), None, ["standard"], False
+    )
+    assert not missing and len(jobs) == 5
+    recorded = fconf.to_plain(load_run_config(zoo.entry_dir(jobs[0].name, zoo.zoo_dir())).backend)
+    assert recorded["collision_model"] == "footprint"
+    env, _ = rp.job_env_and_controller(jobs[0], zoo.zoo_dir())
+    try:
+        assert env.backend.collision_model == "nav_distance"
+    finally:
+        env.close()

@@ -99,6 +99,9 @@ class Condition:
     #: a Beta policy's deterministic action in this condition's evaluations ("mode" or "mean"); None:
     #: the one each policy was trained with (``agent.beta_action``)
     beta_action: str | None = None
+    #: backend settings over the plan's (``backends:``) and the command line's for this condition's
+    #: evaluations, e.g. pymunk's ``collision_model``: the same policies judged by another rule
+    backend_settings: tuple[tuple[str, Any], ...] = ()
 
     @property
     def source(self) -> str:
@@ -220,6 +223,7 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
         "split_scenes",
         "shipped",
         "beta_action",
+        "backend_settings",
     }
     conditions = {}
     for name, spec_ in need(raw, "conditions", dict, "").items():
@@ -243,10 +247,18 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
         beta_action = spec_.get("beta_action")
         if beta_action not in (None, "mode", "mean"):
             raise PlanError(f"{path}: {where}beta_action must be mode or mean, got {beta_action!r}")
+        settings = spec_.get("backend_settings") or {}
+        if not isinstance(settings, dict):
+            raise PlanError(f"{path}: {where}backend_settings must be a mapping of backend keys, got {settings!r}")
+        backend = need(spec_, "backend", str, where)
+        try:
+            check_backend_settings({backend: settings})
+        except PlanError as err:
+            raise PlanError(f"{path}: {where}backend_settings: {err}") from None
         conditions[name] = Condition(
             name=name,
             title=str(spec_.get("title", name)),
-            backend=need(spec_, "backend", str, where),
+            backend=backend,
             task=need(spec_, "task", str, where),
             noise=str(spec_.get("noise", "none")),
             seeds=seeds,
@@ -259,6 +271,7 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
             split_scenes=split,
             shipped=shipped,
             beta_action=beta_action,
+            backend_settings=tuple(sorted(settings.items())),
         )
 
     def shown(name: str, where: str) -> None:
@@ -633,7 +646,7 @@ def plan_jobs(
 ) -> tuple[list[Job], list[str]]:
     """The evaluations of ``conditions`` on ``sets``, and the zoo entries the plan names but the zoo
     lacks; ``backend_settings`` (backend -> {key: value}) evaluates every job on that backend with
-    those settings over the backend's preset."""
+    those settings over the backend's preset, and a condition's own ``backend_settings`` over them."""
     available = set(zoo.names(root))
     conditions = [c for c in conditions if c.shipped]  # a training stage has no zoo entries
     for cond in conditions:  # a stale entry fails here, naming what changed, before any evaluation
@@ -650,7 +663,8 @@ def plan_jobs(
                 continue
             seed, n = plan.scene_sets[set_name]
             common = _evaluated_as(cond, seed, min([n, *(cap for cap in (cond.n_scenes, n_scenes) if cap is not None)]))
-            common["backend_settings"] = tuple(sorted((backend_settings or {}).get(cond.backend, {}).items()))
+            settings = {**(backend_settings or {}).get(cond.backend, {}), **dict(cond.backend_settings)}
+            common["backend_settings"] = tuple(sorted(settings.items()))
             seeds = plan.seeds(cond)
             n_cond = common["n_scenes"]
             blocks = scene_blocks(n_cond, len(seeds)) if cond.split_scenes else [(0, n_cond)] * len(seeds)
@@ -944,7 +958,8 @@ def _table_command(conditions: Sequence[str]) -> str:
 
 def _train_line(plan: Plan, cond: Condition) -> str:
     if cond.policies:
-        return f"{cond.name}: the policies of {cond.policies}, evaluated on {cond.backend}"
+        settings = "".join(f", backend.{k}={v}" for k, v in cond.backend_settings)
+        return f"{cond.name}: the policies of {cond.policies}, evaluated on {cond.backend}{settings}"
     parent = f" init_from={plan.runs_dir}/{cond.parent}/seed<S>" if cond.parent else ""
     seeds = ",".join(str(s) for s in cond.seeds)
     stage = "" if cond.shipped else " (a training stage: its policies are not in the zoo)"

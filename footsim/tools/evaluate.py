@@ -7,6 +7,7 @@ the Hydra output dir of a single run (``hydra.run.dir=DIR``) or, in a multirun
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import hydra
@@ -59,6 +60,25 @@ def _main(cfg) -> dict | None:
     return evaluate_run(run_cfg, run_dir, _out_dir(cfg), cfg)
 
 
+#: conf/eval.yaml's groups that stay empty (the run's choice) unless named on the command line
+_CHOSEN_GROUPS = ("backend", "task", "noise", "randomization", "walk")
+
+
+def check_group_overrides(args: list[str]) -> None:
+    """``group.KEY=V`` on a group that ``conf/eval.yaml`` leaves empty needs ``group=NAME`` beside it:
+    say so instead of Hydra's "Key ... is not in struct"."""
+    named = {a.split("=", 1)[0].lstrip("+~") for a in args if "=" in a}
+    for arg in args:
+        key = arg.split("=", 1)[0].lstrip("+~")
+        group = key.split(".", 1)[0]
+        if "." in key and group in _CHOSEN_GROUPS and group not in named:
+            raise SystemExit(
+                f"footsim-eval: {arg} needs {group}=NAME beside it (e.g. {group}=<the run's {group}>): "
+                f"the evaluation takes the run's {group} as recorded unless one is named"
+            )
+
+
 def main() -> None:
+    check_group_overrides(sys.argv[1:])
     register_schemas(controllers=True)  # the controller group's schemas, before hydra.main composes
     hydra.main(config_path=str(conf_dir()), config_name="eval", version_base="1.3")(_main)()

@@ -16,8 +16,9 @@ of the two feet.
 ``collision_model="nav_distance"`` is the thesis's own 2D check instead (5.1.1: "the distance to
 the closest obstacle ... below a defined threshold"): the navigation pose at each put-down closer
 than ``collision_distance`` to an obstacle's or the ball's edge.  The thesis gives no threshold;
-the default 0.1 m is about the trunk's half width.  It ignores the feet, so it is more lenient than
-the footprint check (the feet reach 0.14 m sideways and 0.08 m forward of the navigation pose).
+the default 0.1 m is about the trunk's half width.  Neither check contains the other: it ignores the
+feet (they reach 0.14 m sideways and 0.08 m forward of the navigation pose) but keeps a 0.1 m circle
+clear where the trunk's footprint reaches 0.075-0.106 m.
 
 Calibrated 2D: ``execution_model`` (``footsim-calibrate``) moves the landing to where a 3D backend
 puts it; ``fall_model`` (a ``footsim-capability`` map) makes a commanded double step fall with the
