@@ -33,6 +33,10 @@ def test_orientation_clause_and_obstacle_term_exclude_ball():
     assert terms["orientation"] == 1.0
     # d_obs = 1.0 - 0.5 = 0.5 to the obstacle; the closer ball (0.1 m away) is ignored
     assert terms["obstacle"] == pytest.approx(math.exp(-0.0015 * 4.0))
+    # a larger epsilon (a config param) asks for more clearance: exp(-0.006 / 0.5²)
+    config = NavTaskConfig(obstacles=True, reward={"obstacle": {"weight": 1.0, "params": {"epsilon": 0.006}}})
+    wider = nav.reward_terms(Pose2D(0, 0, math.pi), scene, np.zeros(6), np.zeros(6), config=config)
+    assert wider == pytest.approx({"obstacle": math.exp(-0.006 * 4.0)})
     far = nav.reward_terms(Pose2D(0, 0, math.pi), Scene(Pose2D(2, 0, 0)), np.zeros(6), np.zeros(6))
     assert far["orientation"] == pytest.approx(math.exp(-math.pi))
 
