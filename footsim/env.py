@@ -133,6 +133,7 @@ class FootstepEnv(gym.Env):
         self.closed = False
         self._time = 0.0
         self._believed = Pose2D()
+        self._walk_feet = None  # the walk's planned feet after the last step: the noise model's odometry
 
     # -- gymnasium API --------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -180,6 +181,7 @@ class FootstepEnv(gym.Env):
         self.task.reset(self.scene, pose)
         self._time = 0.0
         self.noise.reset(self._noise_rng)  # per-episode bias, empty delay buffer
+        self._walk_feet = None
         self._believed = self.noise.believe(pose, self._noise_rng)
         return self.task.observe(self._believed), self._info({})
 
@@ -196,7 +198,12 @@ class FootstepEnv(gym.Env):
         result = self.backend.execute(double_step)
         self._time += result.duration_s
         reward, terms, terminated, truncated = self.task.step(result, action)
-        self._believed = self.noise.believe(self.task.pose, self._noise_rng)
+        odometry = None
+        if self.noise.odometry_weight:  # the walk's planned displacement of the navigation pose
+            if self._walk_feet is not None and result.feet is not None:
+                odometry = self._walk_feet.nav_pose.relative(result.feet.nav_pose)
+            self._walk_feet = result.feet
+        self._believed = self.noise.believe(self.task.pose, self._noise_rng, odometry)
         obs = self.task.observe(self._believed)
         return obs, reward, terminated, truncated, self._info(terms, result)
 

@@ -43,6 +43,19 @@ def test_samples_never_leave_the_bounds_and_mode_is_the_beta_mode():
     np.testing.assert_allclose(dist.mode(), -1 + 2 * (a - 1) / (a + b - 2), rtol=1e-5, atol=1e-6)
 
 
+def test_the_mode_of_a_uniform_beta_is_the_middle_not_nan():
+    """A head output so negative that softplus underflows gives α = β = 1 exactly (uniform): the mode
+    formula's 0/0 must not reach the env as a NaN action (a training run's validation failed on it)."""
+    dist = BetaDistribution(3, np.array([-1.0, 0.0, -0.5]), np.array([1.0, 2.0, 0.5]))
+    params = th.tensor([[-120.0, -120.0, 0.0, -120.0, -120.0, -120.0]])  # α = (1, 1, 1.69), β = (1, 1, 1)
+    alpha, beta = dist.concentrations(params)
+    assert alpha[0, 0] == 1.0 and beta[0, 0] == 1.0  # the underflow itself, in float32
+    mode = dist.mode_of(params)[0]
+    assert th.all(th.isfinite(mode))
+    np.testing.assert_allclose(mode[:2], [0.0, 1.0], atol=1e-6)  # the middle of [-1, 1] and [0, 2]
+    assert mode[2] == pytest.approx(0.5)  # α > 1 = β: the mode is the upper bound, as before
+
+
 def test_beta_policy_learns_saves_and_loads(tmp_path):
     env = FootstepEnv()
     model = PPO(BetaActorCriticPolicy, env, n_steps=64, batch_size=64, n_epochs=1, device="cpu", seed=0)

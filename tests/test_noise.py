@@ -121,8 +121,57 @@ def test_presets():
     delayed = build_noise(load_preset("noise", "localization_delayed"))
     assert delayed.delay_steps >= 1 and not delayed.biased and delayed.sigma_x == 0.05
     assert not build_noise(load_preset("noise", "none")).active
-    for name in ("localization_biased", "localization_delayed"):
+    fused = build_noise(load_preset("noise", "localization_odometry"))
+    assert (fused.sigma_x, fused.sigma_y, fused.sigma_theta) == (0.05, 0.03, 0.07) and fused.odometry_weight == 0.6
+    assert all(build_noise(load_preset("noise", n)).odometry_weight == 0 for n in ("localization", "none"))
+    for name in ("localization_biased", "localization_delayed", "localization_odometry"):
         FootstepEnv(noise=name).reset(seed=0)
+
+
+@pytest.mark.parametrize("weight", [0.6, 0.8])
+def test_odometry_fusion_shrinks_the_spread_as_a_first_order_filter(weight):
+    """With exact odometry the estimate's error follows e_t = w e_(t-1) + (1 - w) n_t, whose stationary
+    spread is σ √((1 - w) / (1 + w)) (hand-derived); the robot walks straight along x, heading 0, so
+    the robot-frame noise is the world-frame error."""
+    sigmas = (0.05, 0.03, 0.07)
+    noise = NoiseModel(sigma_x=sigmas[0], sigma_y=sigmas[1], sigma_theta=sigmas[2], odometry_weight=weight)
+    rng = np.random.default_rng(5)
+    noise.reset(rng)
+    step = Pose2D(0.04, 0.0, 0.0)
+    true, errors = Pose2D(), []
+    noise.believe(true, rng)  # the first step has no odometry: the measurement itself
+    for _ in range(40000):
+        true = true.compose(step)
+        believed = noise.believe(true, rng, odometry=step)
+        errors.append((believed.x - true.x, believed.y - true.y, believed.theta - true.theta))
+    spread = np.array(errors[100:]).std(axis=0)
+    # x and y carry a little of the heading error through the 4 cm odometry: 2 % leeway besides 3 % sampling
+    np.testing.assert_allclose(spread, np.array(sigmas) * math.sqrt((1 - weight) / (1 + weight)), rtol=0.05)
+    silent = NoiseModel(odometry_weight=weight)  # no noise: nothing to fuse, the true pose
+    silent.reset(rng)
+    assert silent.believe(true, rng, odometry=Pose2D(1.0, 0.0, 0.0)) == true
+
+
+def test_env_passes_the_walks_odometry_to_the_noise_model():
+    """In 2D the feet land as planned, so the odometry the env hands the noise model is the true
+    displacement of the navigation pose (robot frame); the first step of an episode has none."""
+    env = FootstepEnv(noise="localization_odometry")
+    seen = []
+    believe = env.noise.believe
+
+    def spy(pose, rng, odometry=None):
+        seen.append((pose, odometry))
+        return believe(pose, rng, odometry)
+
+    env.noise.believe = spy
+    env.reset(seed=4)
+    rng = np.random.default_rng(0)
+    for _ in range(6):
+        env.step(rng.uniform(-0.5, 0.5, size=6))
+    poses, odometry = [p for p, _ in seen], [o for _, o in seen]
+    assert odometry[:2] == [None, None]  # at reset and after the first step: no odometry yet
+    for before, after, odo in zip(poses[1:], poses[2:], odometry[2:]):
+        np.testing.assert_allclose(odo, before.relative(after), atol=1e-9)
 
 
 def test_switching_bias_on_does_not_change_the_scenes():
@@ -144,6 +193,9 @@ def test_switching_bias_on_does_not_change_the_scenes():
         ({"bias_sigma_theta": math.inf}, "noise.bias_sigma_theta"),
         ({"bias_sigma_y": "a"}, "noise.bias_sigma_y"),
         ({"bias": 0.1}, r"noise: unknown key\(s\) \['bias'\]"),
+        ({"odometry_weight": 1.0}, r"noise.odometry_weight must be a number in \[0, 1\)"),
+        ({"odometry_weight": -0.1}, r"noise.odometry_weight must be a number in \[0, 1\)"),
+        ({"odometry_weight": True}, r"noise.odometry_weight must be a"),
     ],
 )
 def test_invalid_values_name_the_key(cfg, message):

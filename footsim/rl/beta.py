@@ -82,9 +82,13 @@ class BetaDistribution(Distribution):
         return self._from_unit(self.distribution.rsample().clamp(_EPS, 1.0 - _EPS))
 
     def _deterministic(self, alpha: th.Tensor, beta: th.Tensor) -> th.Tensor:
+        mean = alpha / (alpha + beta)
         if self.deterministic_action == "mean":
-            return self._from_unit(alpha / (alpha + beta))
-        return self._from_unit((alpha - 1.0) / (alpha + beta - 2.0))
+            return self._from_unit(mean)
+        # Where both softplus terms underflow (head outputs below about -17 in float32), α = β = 1:
+        # the uniform density has no mode and the formula gives 0/0, so take its mean, the middle.
+        spread = alpha + beta - 2.0
+        return self._from_unit(th.where(spread > 0, (alpha - 1.0) / spread, mean))
 
     def mode(self) -> th.Tensor:
         """SB3's deterministic action: the mode, or the mean (``deterministic_action``)."""
