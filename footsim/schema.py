@@ -226,6 +226,7 @@ class SelectSection:
     every: int = MISSING
     n_scenes: int = MISSING
     scenes_seed: int = MISSING
+    noise: Optional[str] = None  # a conf/noise preset to validate under; None: the run's own
 
 
 @dataclass
@@ -254,6 +255,7 @@ class EvalSection:
     video: bool = MISSING
     video_episodes: int = MISSING
     video_fps: float = MISSING
+    noise: Optional[str] = None  # a conf/noise preset to evaluate under; None: the run's own
 
 
 @dataclass

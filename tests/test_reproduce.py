@@ -30,13 +30,13 @@ def test_study_plan_v1_training_commands_compose_to_its_conditions():
     assert plan.scene_sets["standard"] == (20220101, 500)
     assert plan.scene_sets["heldout"][0] != 20220101
     trained = [c for c in plan.conditions.values() if not c.policies]
-    study_trained = {"2d_nav", "2d_nav_noise", "2d_obst_beta", "2d_obst_beta_noise", "mj_nav", "mj_obst_beta"}
+    study_trained = {"2d_nav", "2d_nav_noise", "2d_obst_beta", "2d_obst_beta_10m_noise", "mj_nav", "mj_obst_beta"}
     assert {c.name for c in trained} >= study_trained
     for cond in trained:
         cfg = fconf.compose("config", [*cond.train, "seed=0"])
         evaluated = (cond.backend, cond.task, cond.noise, cond.randomization)
         assert (cfg.backend.name, cfg.task.name, cfg.noise.name, cfg.randomization.name) == evaluated, cond.name
-    study = ("2d_nav", "2d_obst", "2d_nav_noise", "2d_obst_beta", "2d_obst_beta_noise")
+    study = ("2d_nav", "2d_obst", "2d_nav_noise", "2d_obst_beta", "2d_obst_beta_10m_odometry")
     study += ("2d_obst_beta_tuned", "2d_obst_beta_7m", "2d_obst_beta_10m", "2d_obst_beta_10m_noise")
     study += ("mj_nav", "mj_nav_long", "mj_nav_noise", "mj_obst_beta", "mj_obst_beta_long")
     study += ("mj_obst_beta_noise", "mj_nav_300k", "mj_obst_beta_400k", "mj_nav_scratch")
@@ -141,8 +141,8 @@ def test_select_and_training_commands(tmp_path, capsys):
         "2d_obst_beta_7m",
         "2d_obst_beta_10m",
         "2d_obst_beta_hint",
-        "2d_obst_beta_noise",
         "2d_obst_beta_10m_noise",
+        "2d_obst_beta_10m_odometry",
         "c2d_obst_beta",
         "quickstart",
         "quickstart_beta",

@@ -113,3 +113,38 @@ def test_a_resumed_run_keeps_its_validations_best_and_schedule(tmp_path):
         callback.model.num_timesteps = steps
         callback._on_step()
     assert validated == [40000, 60000]  # the next multiples of 20 000, as the interrupted run would have
+
+
+def test_validation_and_the_evaluation_after_training_can_take_another_noise(tmp_path):
+    """train.select.noise and eval.noise judge a run under a noise preset other than its training one
+    (e.g. trained under a wider noise, reported under the thesis's); a bad preset fails naming the key."""
+    from footsim import config as fconf
+    from footsim.rl.common import under_noise, validate_train_config
+    from footsim.rl.selection import Selector
+
+    cfg = fconf.compose("config", ["noise=localization", "train.select.noise=none", "eval.noise=localization_odometry"])
+    validate_train_config(cfg)
+    selector = Selector(cfg, tmp_path, {"every": 1, "n_scenes": 2, "scenes_seed": 7})
+    try:
+        env, _ = selector._env_and_scenes()
+        assert not env.noise.active  # validated without noise, trained with it
+    finally:
+        selector.close()
+    judged = under_noise(cfg, cfg.eval.noise)
+    assert judged.noise.name == "localization_odometry" and judged.noise.odometry_weight == 0.6
+    assert cfg.noise.name == "localization" and under_noise(cfg, None) is cfg  # the run's own config untouched
+    for key in ("eval.noise", "train.select.noise"):
+        bad = fconf.compose("config", [f"{key}=bogus"])
+        with pytest.raises(ValueError, match=rf"{key}: unknown noise preset 'bogus'"):
+            validate_train_config(bad)
+
+    run_dir = tmp_path / "run"
+    overrides = tiny_training(256, "noise=localization", "eval.noise=none", "eval.n_scenes=2", "eval.plot=false")
+    proc = subprocess.run(
+        ["footsim-train", *overrides, f"hydra.run.dir={run_dir}"], capture_output=True, text=True, timeout=600
+    )
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert (
+        "| policy (pymunk, nav, noise=none) |" in proc.stdout
+        and OmegaConf.load(run_dir / "config.yaml").noise.name == "localization"
+    )

@@ -8,7 +8,7 @@ import os
 from pathlib import Path
 
 import numpy as np
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig, OmegaConf, open_dict
 
 from footsim.config import build_noise, build_task, plain_config, upgrade_run_config
 from footsim.utils import atomic_save, atomic_write_text
@@ -99,6 +99,29 @@ def validate_train_config(cfg: DictConfig) -> None:
     # the task's and the noise's own checks, here before the env workers (and torch) start
     build_task(plain_config(cfg.task))
     build_noise(plain_config(cfg.noise))
+    for key, section in (("train.select.noise", cfg.train.get("select")), ("eval.noise", cfg.eval)):
+        preset = (section or {}).get("noise")
+        if preset is not None:
+            try:
+                under_noise(cfg, preset)
+            except ValueError as err:
+                raise ValueError(f"{key}: {err}") from None
+
+
+def under_noise(cfg: DictConfig, preset: str | None) -> DictConfig:
+    """``cfg`` with its noise replaced by the ``conf/noise`` preset (a copy); ``cfg`` itself for None.
+    Validation and the evaluation after training may judge a run under another noise than it trained
+    under (e.g. trained under a wider one, reported under the thesis's)."""
+    if preset is None:
+        return cfg
+    from footsim.config import load_preset
+
+    values = load_preset("noise", str(preset))
+    build_noise(values)
+    out = cfg.copy()
+    with open_dict(out):
+        out.noise = values
+    return out
 
 
 LR_SCHEDULES = ("constant", "linear")

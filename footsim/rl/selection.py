@@ -4,7 +4,8 @@ PPO's policy moves from one update to the next, so the last policy of a run is o
 recent ones.  With selection on, every ``every`` env steps (and once
 at the end) the current policy is written as a run directory of its own (``checkpoints/candidate``)
 and evaluated there the way ``footsim-eval`` evaluates a run (deterministic actions, episode ``i`` on
-scene ``i`` with seed ``i``) on ``n_scenes`` validation scenes sampled from ``scenes_seed``.  The best
+scene ``i`` with seed ``i``) on ``n_scenes`` validation scenes sampled from ``scenes_seed``, under the
+run's noise or the ``noise`` preset given (e.g. the thesis's for a run trained under a wider one).  The best
 so far (success, then fewer falls and collisions, then the earlier) is kept in ``checkpoints/best``,
 and at the end it becomes the run's ``model.zip``.  ``selection.csv`` lists every validation.
 
@@ -26,7 +27,15 @@ from typing import Any
 
 from omegaconf import DictConfig
 
-from footsim.rl.common import CHECKPOINT_DIR, MODEL_FILE, VECNORM_FILE, LoadedPolicy, write_json, write_policy
+from footsim.rl.common import (
+    CHECKPOINT_DIR,
+    MODEL_FILE,
+    VECNORM_FILE,
+    LoadedPolicy,
+    under_noise,
+    write_json,
+    write_policy,
+)
 from footsim.utils import atomic_save, atomic_write_text
 
 SELECTION_FILE = "selection.csv"
@@ -98,7 +107,7 @@ class Selector:
             from footsim.env import make_env
             from footsim.tasks.scenes import sample_scenes
 
-            self._env = make_env(self.cfg)
+            self._env = make_env(under_noise(self.cfg, self.cfg.train.select.get("noise")))
             self._scenes = sample_scenes(self._env.sampler, self.settings["n_scenes"], self.settings["scenes_seed"])
         return self._env, self._scenes
 

@@ -28,6 +28,7 @@ from footsim.rl.common import (
     policy_class,
     policy_kwargs,
     save_config,
+    under_noise,
     validate_train_config,
     write_json,
     write_policy,
@@ -283,4 +284,4 @@ def train(cfg: DictConfig, run_dir: Path) -> dict:
     if not cfg.eval.after_train:
         return {}
 
-    return evaluate_run(cfg, run_dir, run_dir / "eval", cfg.eval)
+    return evaluate_run(under_noise(cfg, cfg.eval.get("noise")), run_dir, run_dir / "eval", cfg.eval)
