@@ -35,7 +35,9 @@ def test_study_plan_v1_training_commands_compose_to_its_conditions():
     for cond in trained:
         cfg = fconf.compose("config", [*cond.train, "seed=0"])
         evaluated = (cond.backend, cond.task, cond.noise, cond.randomization)
-        assert (cfg.backend.name, cfg.task.name, cfg.noise.name, cfg.randomization.name) == evaluated, cond.name
+        noise = cfg.eval.noise or cfg.noise.name  # a run may be reported under another noise than it trains under
+        assert (cfg.backend.name, cfg.task.name, noise, cfg.randomization.name) == evaluated, cond.name
+        assert cfg.train.select.noise in (None, cond.noise), cond.name  # and validated under the reported one
     study = ("2d_nav", "2d_obst", "2d_nav_noise", "2d_obst_beta", "2d_obst_beta_10m_odometry")
     study += ("2d_obst_beta_tuned", "2d_obst_beta_7m", "2d_obst_beta_10m", "2d_obst_beta_10m_noise")
     study += ("mj_nav", "mj_nav_long", "mj_nav_noise", "mj_obst_beta", "mj_obst_beta_long")
@@ -142,6 +144,7 @@ def test_select_and_training_commands(tmp_path, capsys):
         "2d_obst_beta_10m",
         "2d_obst_beta_hint",
         "2d_obst_beta_10m_noise",
+        "2d_obst_beta_10m_wide",
         "2d_obst_beta_10m_odometry",
         "c2d_obst_beta",
         "quickstart",
