@@ -144,7 +144,6 @@ def test_select_and_training_commands(tmp_path, capsys):
         "2d_obst_beta_10m",
         "2d_obst_beta_hint",
         "2d_obst_beta_10m_noise",
-        "2d_obst_beta_10m_wide",
         "2d_obst_beta_10m_odometry",
         "c2d_obst_beta",
         "quickstart",
