@@ -199,13 +199,25 @@ class FootstepEnv(gym.Env):
         self._time += result.duration_s
         reward, terms, terminated, truncated = self.task.step(result, action)
         odometry = None
-        if self.noise.odometry_weight:  # the walk's planned displacement of the navigation pose
-            if self._walk_feet is not None and result.feet is not None:
-                odometry = self._walk_feet.nav_pose.relative(result.feet.nav_pose)
+        if self.noise.odometry_weight:
+            odometry = self._walk_odometry(result)
             self._walk_feet = result.feet
         self._believed = self.noise.believe(self.task.pose, self._noise_rng, odometry)
         obs = self.task.observe(self._believed)
         return obs, reward, terminated, truncated, self._info(terms, result)
+
+    def _walk_odometry(self, result) -> Pose2D | None:
+        """The navigation pose's displacement over the step as the walk planned it, in the robot frame:
+        the executed double step placed from the feet before by the footstep geometry, blind to where
+        the feet really landed (2D footstep-landing randomization or execution model, 3D slip and creep).
+        None on the first step of an episode or when the backend reports no feet."""
+        before, geometry = self._walk_feet, getattr(self.backend, "geometry", None)
+        if before is None or result.feet is None:
+            return None
+        if geometry is None or result.executed is None:  # a backend without the geometry: its reported feet
+            return before.nav_pose.relative(result.feet.nav_pose)
+        planned = geometry.execute(before, result.executed)[1]
+        return before.nav_pose.relative(planned.nav_pose)
 
     def render(self):
         if self.render_mode != "rgb_array":

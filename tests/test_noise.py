@@ -7,7 +7,7 @@ import pytest
 
 from footsim.config import build_noise, load_preset
 from footsim.env import FootstepEnv
-from footsim.geometry import Pose2D
+from footsim.geometry import Pose2D, wrap_angles
 from footsim.tasks.noise import NoiseModel
 
 
@@ -128,34 +128,34 @@ def test_presets():
         FootstepEnv(noise=name).reset(seed=0)
 
 
-@pytest.mark.parametrize("weight", [0.6, 0.8])
-def test_odometry_fusion_shrinks_the_spread_as_a_first_order_filter(weight):
+@pytest.mark.parametrize(("weight", "heading"), [(0.6, 0.0), (0.8, 0.0), (0.6, math.pi / 2)])
+def test_odometry_fusion_shrinks_the_spread_as_a_first_order_filter(weight, heading):
     """With exact odometry the estimate's error follows e_t = w e_(t-1) + (1 - w) n_t, whose stationary
-    spread is σ √((1 - w) / (1 + w)) (hand-derived); the robot walks straight along x, heading 0, so
-    the robot-frame noise is the world-frame error."""
+    spread is σ √((1 - w) / (1 + w)) (hand-derived).  The robot walks straight ahead, so at heading 0 the
+    robot-frame noise is the world-frame error and at π/2 its x and y swap (odometry added in the
+    world frame instead of the robot's would drift 4 cm a step off there)."""
     sigmas = (0.05, 0.03, 0.07)
     noise = NoiseModel(sigma_x=sigmas[0], sigma_y=sigmas[1], sigma_theta=sigmas[2], odometry_weight=weight)
     rng = np.random.default_rng(5)
     noise.reset(rng)
     step = Pose2D(0.04, 0.0, 0.0)
-    true, errors = Pose2D(), []
+    true, errors = Pose2D(0.0, 0.0, heading), []
     noise.believe(true, rng)  # the first step has no odometry: the measurement itself
     for _ in range(40000):
         true = true.compose(step)
         believed = noise.believe(true, rng, odometry=step)
-        errors.append((believed.x - true.x, believed.y - true.y, believed.theta - true.theta))
+        errors.append((believed.x - true.x, believed.y - true.y, wrap_angles(believed.theta - true.theta)))
     spread = np.array(errors[100:]).std(axis=0)
+    world = sigmas if heading == 0.0 else (sigmas[1], sigmas[0], sigmas[2])
     # x and y carry a little of the heading error through the 4 cm odometry: 2 % leeway besides 3 % sampling
-    np.testing.assert_allclose(spread, np.array(sigmas) * math.sqrt((1 - weight) / (1 + weight)), rtol=0.05)
+    np.testing.assert_allclose(spread, np.array(world) * math.sqrt((1 - weight) / (1 + weight)), rtol=0.05)
     silent = NoiseModel(odometry_weight=weight)  # no noise: nothing to fuse, the true pose
     silent.reset(rng)
     assert silent.believe(true, rng, odometry=Pose2D(1.0, 0.0, 0.0)) == true
 
 
-def test_env_passes_the_walks_odometry_to_the_noise_model():
-    """In 2D the feet land as planned, so the odometry the env hands the noise model is the true
-    displacement of the navigation pose (robot frame); the first step of an episode has none."""
-    env = FootstepEnv(noise="localization_odometry")
+def _odometry_seen(env, n_steps, seed):
+    """(true poses, odometry) the env hands its noise model over ``n_steps`` random steps from a reset."""
     seen = []
     believe = env.noise.believe
 
@@ -164,14 +164,33 @@ def test_env_passes_the_walks_odometry_to_the_noise_model():
         return believe(pose, rng, odometry)
 
     env.noise.believe = spy
-    env.reset(seed=4)
-    rng = np.random.default_rng(0)
-    for _ in range(6):
+    env.reset(seed=seed)
+    rng = np.random.default_rng(seed)
+    for _ in range(n_steps):
         env.step(rng.uniform(-0.5, 0.5, size=6))
-    poses, odometry = [p for p, _ in seen], [o for _, o in seen]
-    assert odometry[:2] == [None, None]  # at reset and after the first step: no odometry yet
-    for before, after, odo in zip(poses[1:], poses[2:], odometry[2:]):
-        np.testing.assert_allclose(odo, before.relative(after), atol=1e-9)
+    env.noise.believe = believe
+    return [p for p, _ in seen], [o for _, o in seen]
+
+
+def test_env_passes_the_walks_odometry_to_the_noise_model():
+    """In plain 2D the feet land as planned, so the odometry the env hands the noise model is the true
+    displacement of the navigation pose (robot frame); the first step of each episode has none.  With
+    footstep-landing randomization the feet land elsewhere, and the odometry stays the planned one."""
+    env = FootstepEnv(noise="localization_odometry")
+    for seed in (4, 5):  # a second episode starts without odometry again
+        poses, odometry = _odometry_seen(env, 6, seed)
+        assert odometry[:2] == [None, None]  # at reset and after the first step: no odometry yet
+        for before, after, odo in zip(poses[1:], poses[2:], odometry[2:]):
+            np.testing.assert_allclose(odo, before.relative(after), atol=1e-9)
+
+    randomized = FootstepEnv(noise="localization_odometry", randomization="default")
+    poses, odometry = _odometry_seen(randomized, 6, 4)
+    truth = [before.relative(after) for before, after in zip(poses[1:], poses[2:])]
+    assert all(o is not None for o in odometry[2:])
+    assert (
+        max(np.abs(np.subtract(o, t)).max() for o, t in zip(odometry[2:], truth)) > 1e-3
+    )  # blind to the landing noise
+    assert max(np.abs(np.subtract(o, t)).max() for o, t in zip(odometry[2:], truth)) < 0.1  # but the same steps
 
 
 def test_switching_bias_on_does_not_change_the_scenes():

@@ -942,6 +942,11 @@ def test_a_condition_can_evaluate_under_its_own_backend_settings(tmp_path, monke
     bad = body.replace("collision_model: nav_distance", "collision_modle: nav_distance")
     with pytest.raises(rp.PlanError, match=r"conditions\.nav_thesis\.backend_settings: .*collision_modle"):
         rp.load_plan(_plan(tmp_path, bad))
+    trained = BASE.replace(
+        "    seeds: [0, 1]\n", "    seeds: [0, 1]\n    backend_settings: {collision_model: nav_distance}\n"
+    )
+    with pytest.raises(rp.PlanError, match=r"conditions\.nav\.backend_settings needs policies:"):
+        rp.load_plan(_plan(tmp_path, trained))
     with pytest.raises(rp.PlanError, match=r"conditions\.nav_thesis\.backend_settings must be a mapping"):
         rp.load_plan(_plan(tmp_path, body.replace("{collision_model: nav_distance}", "[nav_distance]")))
 

@@ -37,6 +37,9 @@ def test_orientation_clause_and_obstacle_term_exclude_ball():
     config = NavTaskConfig(obstacles=True, reward={"obstacle": {"weight": 1.0, "params": {"epsilon": 0.006}}})
     wider = nav.reward_terms(Pose2D(0, 0, math.pi), scene, np.zeros(6), np.zeros(6), config=config)
     assert wider == pytest.approx({"obstacle": math.exp(-0.006 * 4.0)})
+    negative = NavTaskConfig(obstacles=True, reward={"obstacle": {"weight": 1.0, "params": {"epsilon": -0.1}}})
+    with pytest.raises(ValueError, match=r"task\.reward\.obstacle\.params\.epsilon must be >= 0, got -0\.1"):
+        nav.reward_terms(Pose2D(0, 0, math.pi), scene, np.zeros(6), np.zeros(6), config=negative)
     far = nav.reward_terms(Pose2D(0, 0, math.pi), Scene(Pose2D(2, 0, 0)), np.zeros(6), np.zeros(6))
     assert far["orientation"] == pytest.approx(math.exp(-math.pi))
 

@@ -250,6 +250,11 @@ def load_plan(spec: str | os.PathLike | None = None) -> Plan:
         settings = spec_.get("backend_settings") or {}
         if not isinstance(settings, dict):
             raise PlanError(f"{path}: {where}backend_settings must be a mapping of backend keys, got {settings!r}")
+        if settings and not spec_.get("policies"):
+            raise PlanError(
+                f"{path}: {where}backend_settings needs policies: (a trained condition's settings go in its "
+                "train line, so that its training command shows them)"
+            )
         backend = need(spec_, "backend", str, where)
         try:
             check_backend_settings({backend: settings})

@@ -265,6 +265,8 @@ def obstacle(step: StepContext, epsilon: float = 0.0015) -> float:
     the thesis's epsilon is 0.0015 m² (0.86 at 0.1 m, 0.55 at 0.05 m).
 
     The ball is excluded (it would create a local minimum before the goal)."""
+    if not epsilon >= 0.0:
+        raise ValueError(f"task.reward.obstacle.params.epsilon must be >= 0, got {epsilon!r}")
     scene = step.scene
     if not scene.obstacles:
         return 1.0

@@ -16,13 +16,16 @@ in the robot frame); the model returns the believed pose of step ``t - k``.
 
 **Odometry fusion** (``odometry_weight = w``, an option beyond the thesis, off at 0): the robot keeps
 its own estimate instead of taking each measurement as it comes.  It moves the last estimate by the
-walk's odometry of the step (the displacement the walk engine planned; exact in 2D, where the feet
-land as planned, and blind to slip and creep in 3D) and blends it with the new measurement:
+walk's odometry of the step (the displacement the walk planned, :meth:`footsim.env.FootstepEnv.step`:
+exact in plain 2D, blind to 2D footstep-landing randomization or a calibrated execution model and to
+3D slip and creep) and blends it with the new measurement:
 ``estimate = predicted + (1 - w) (measured - predicted)`` per component (the angle wrapped).  For a
 measurement with independent noise of spread σ and exact odometry the estimate's spread settles
 at ``σ √((1 - w) / (1 + w))`` (half of σ at w = 0.6); an odometry error e per step leaves a bias of
 about ``w e / (1 - w)``.  The first step of an episode, which has no odometry yet, takes the
 measurement.  Fusion acts only on a noisy measurement (with no noise the robot knows its pose).
+With a delay as well, the delayed measurement is blended with the current step's odometry, so the
+estimate lags by the delay as the measurement does.
 
 Random numbers are drawn only for the active parts, so switching bias or delay on leaves the
 Gaussian stream of a preset unchanged, and switching everything off draws nothing.

@@ -73,8 +73,9 @@ def check_group_overrides(args: list[str]) -> None:
         group = key.split(".", 1)[0]
         if "." in key and group in _CHOSEN_GROUPS and group not in named:
             raise SystemExit(
-                f"footsim-eval: {arg} needs {group}=NAME beside it (e.g. {group}=<the run's {group}>): "
-                f"the evaluation takes the run's {group} as recorded unless one is named"
+                f"footsim-eval: {arg} needs {group}=NAME beside it: a run is evaluated under its recorded "
+                f"{group} (a baseline under the default) unless {group}=NAME names a conf/{group} preset, "
+                f"which then replaces it with {key.split('.', 1)[1]} set over the preset"
             )
 
 
