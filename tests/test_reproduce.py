@@ -933,6 +933,11 @@ def test_a_condition_can_evaluate_under_its_own_backend_settings(tmp_path, monke
     assert settings[("nav", "policy")] == {"collision_distance": 0.2, "collision_model": "footprint"}
     assert settings[("nav_thesis", "policy")] == {"collision_distance": 0.2, "collision_model": "nav_distance"}
     assert settings[("nav_thesis", "baseline")] == settings[("nav_thesis", "policy")]
+    # a path plot runs its episodes as the evaluation does
+    path_spec = {"condition": "nav_thesis", "set": "standard", "scenes": [0]}
+    assert {j.backend_settings for j in rp.path_jobs(plan, path_spec, tmp_path)} == {
+        (("collision_model", "nav_distance"),)
+    }
     baseline = next(j for j in jobs if j.kind == "baseline")
     env, _ = rp.job_env_and_controller(baseline, tmp_path)
     try:

@@ -590,6 +590,14 @@ def scene_blocks(n_scenes: int, n_seeds: int) -> list[tuple[int, int]]:
     return [(sum(sizes[:k]), sizes[k]) for k in range(n_seeds)]
 
 
+def _job_settings(
+    cond: Condition, backend_settings: Mapping[str, Mapping[str, Any]] | None
+) -> tuple[tuple[str, Any], ...]:
+    """A job's backend settings: ``backend_settings`` for the condition's backend, its own over them."""
+    settings = {**(backend_settings or {}).get(cond.backend, {}), **dict(cond.backend_settings)}
+    return tuple(sorted(settings.items()))
+
+
 def _evaluated_as(cond: Condition, scenes_seed: int, n_scenes: int) -> dict[str, Any]:
     """The fields a :class:`Job` of ``cond`` takes from it: what it is evaluated under, on which scenes."""
     return dict(
@@ -668,8 +676,7 @@ def plan_jobs(
                 continue
             seed, n = plan.scene_sets[set_name]
             common = _evaluated_as(cond, seed, min([n, *(cap for cap in (cond.n_scenes, n_scenes) if cap is not None)]))
-            settings = {**(backend_settings or {}).get(cond.backend, {}), **dict(cond.backend_settings)}
-            common["backend_settings"] = tuple(sorted(settings.items()))
+            common["backend_settings"] = _job_settings(cond, backend_settings)
             seeds = plan.seeds(cond)
             n_cond = common["n_scenes"]
             blocks = scene_blocks(n_cond, len(seeds)) if cond.split_scenes else [(0, n_cond)] * len(seeds)
@@ -1505,6 +1512,7 @@ def path_jobs(plan: Plan, spec: dict, root: Path) -> list[Job]:
     baselines the plan runs under that condition, each as the evaluation runs it."""
     cond = plan.conditions[spec["condition"]]
     common = _evaluated_as(cond, *plan.scene_sets[spec["set"]])
+    common["backend_settings"] = _job_settings(cond, plan.backends)  # as plan_jobs runs them
     jobs = []
     seeds = plan.seeds(cond)
     if seeds and plan.entry(cond, seeds[0]) in set(zoo.names(root)):
