@@ -230,6 +230,14 @@ class SelectSection:
 
 
 @dataclass
+class ReplaySection:
+    """``train.replay``: replay failed scenes in training (``footsim.rl.replay``)."""
+
+    prob: float = 0.0
+    capacity: int = 1000
+
+
+@dataclass
 class TrainSection:
     """``footsim-train``'s ``train`` section."""
 
@@ -240,6 +248,7 @@ class TrainSection:
     progress_bar: bool = MISSING
     tensorboard: bool = MISSING
     select: SelectSection = MISSING
+    replay: ReplaySection = field(default_factory=ReplaySection)
 
 
 @dataclass

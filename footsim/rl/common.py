@@ -99,6 +99,11 @@ def validate_train_config(cfg: DictConfig) -> None:
     # the task's and the noise's own checks, here before the env workers (and torch) start
     build_task(plain_config(cfg.task))
     build_noise(plain_config(cfg.noise))
+    replay = cfg.train.get("replay")
+    if replay is not None:
+        from footsim.rl.replay import check_replay
+
+        check_replay(replay.get("prob"), replay.get("capacity"))
     for key, section in (("train.select.noise", cfg.train.get("select")), ("eval.noise", cfg.eval)):
         preset = (section or {}).get("noise")
         if preset is not None:

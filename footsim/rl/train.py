@@ -50,7 +50,13 @@ def _env_factory(cfg: DictConfig, rank: int, worker_process: bool = False):
 
         if worker_process:  # a terminal's Ctrl-C reaches the whole group: the trainer alone handles
             signal.signal(signal.SIGINT, signal.SIG_IGN)  # it and closes its workers afterwards
-        return Monitor(make_env(plain))
+        env = make_env(plain)
+        replay = plain["train"].get("replay") or {}
+        if replay.get("prob", 0.0):
+            from footsim.rl.replay import FailedSceneReplay
+
+            env = FailedSceneReplay(env, replay["prob"], replay["capacity"], seed=int(plain["seed"]) * 1000 + rank)
+        return Monitor(env)
 
     return make
 
