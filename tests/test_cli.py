@@ -142,6 +142,14 @@ def test_eval_says_what_it_uses_instead_of_what_it_does_not_take_as_given(tiny_r
     run_cfg = eval_run_config(tmp_path / "tuned", OmegaConf.create({"backend": backend}))
     assert capsys.readouterr().out == ""  # nothing replaced, nothing to say
     assert run_cfg.walk.freq == 1.5 and run_cfg.backend.collision_distance == 0.25
+    # a run recorded with its own backend setting: backend=NAME with another key drops it, and says so
+    tuned.backend.collision_distance = 0.3
+    OmegaConf.save(tuned, tmp_path / "tuned" / "config.yaml")
+    asked = {"name": "pymunk", "collision_model": "nav_distance"}
+    run_cfg = eval_run_config(tmp_path / "tuned", OmegaConf.create({"backend": asked}))
+    out = capsys.readouterr().out
+    assert "ignoring the run's recorded backend.collision_distance=0.3" in out and out.startswith("backend=pymunk: ")
+    assert run_cfg.backend.collision_distance == 0.1 and run_cfg.backend.collision_model == "nav_distance"
 
     out = run("footsim-eval", f"run={nav_run}", "controller=velocity", "n_scenes=1", "plot=false",
               f"hydra.run.dir={tmp_path}").stdout  # fmt: skip

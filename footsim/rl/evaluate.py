@@ -472,8 +472,27 @@ def eval_run_config(run_dir: Path, cfg_eval) -> DictConfig:
         run_cfg.walk = walk
     for group in ("backend", "noise", "randomization"):
         if cfg_eval.get(group) is not None:
-            run_cfg[group] = fconf.load_preset(group, cfg_eval[group])
+            asked = fconf.load_preset(group, cfg_eval[group])
+            _note_dropped_settings(group, fconf.to_plain(run_cfg.get(group) or {}), asked)
+            run_cfg[group] = asked
     return run_cfg
+
+
+def _note_dropped_settings(group: str, recorded: dict, asked: dict) -> None:
+    """Say which of the run's own settings of ``group`` (values its preset does not have) the asked
+    preset of the same name drops, e.g. the study's 2 ms MuJoCo step under ``backend=mujoco``."""
+    name = asked.get("name")
+    if recorded.get("name") != name:
+        return
+    preset = fconf.load_preset(group, name)
+    dropped = [k for k in sorted(recorded) if k in preset and recorded[k] != preset[k] and asked.get(k) == preset[k]]
+    if dropped:
+        shown = ", ".join(f"{group}.{k}={recorded[k]}" for k in dropped[:4]) + (", …" if len(dropped) > 4 else "")
+        note_not_honoured(
+            f"{group}={name}",
+            f"the conf/{group}/{name}.yaml preset with the command line's keys",
+            f"the run's recorded {shown} (give them on the command line to keep them)",
+        )
 
 
 def walk_on_backend(run_cfg, backend: str) -> tuple[dict, list[str]]:
