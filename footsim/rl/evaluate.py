@@ -463,7 +463,7 @@ def eval_run_config(run_dir: Path, cfg_eval) -> DictConfig:
         name = cfg_eval.backend.name
         walk, differing = walk_on_backend(run_cfg, name)
         if differing:
-            shown = ", ".join(f"walk.{k}" for k in differing[:4]) + (", …" if len(differing) > 4 else "")
+            shown = _listed([f"walk.{k}" for k in differing])
             note_not_honoured(
                 f"backend={name}",
                 f"walking with the {name} backend's walk preset (conf/walk/{name}.yaml)",
@@ -487,12 +487,17 @@ def _note_dropped_settings(group: str, recorded: dict, asked: dict) -> None:
     preset = fconf.load_preset(group, name)
     dropped = [k for k in sorted(recorded) if k in preset and recorded[k] != preset[k] and asked.get(k) == preset[k]]
     if dropped:
-        shown = ", ".join(f"{group}.{k}={recorded[k]}" for k in dropped[:4]) + (", …" if len(dropped) > 4 else "")
         note_not_honoured(
             f"{group}={name}",
             f"the conf/{group}/{name}.yaml preset with the command line's keys",
-            f"the run's recorded {shown} (give them on the command line to keep them)",
+            f"the run's recorded {_listed([f'{group}.{k}={recorded[k]}' for k in dropped])} "
+            "(give them on the command line to keep them)",
         )
+
+
+def _listed(items: list[str], most: int = 4) -> str:
+    """The first ``most`` items, comma-separated, and an ellipsis when there are more."""
+    return ", ".join(items[:most]) + (", …" if len(items) > most else "")
 
 
 def walk_on_backend(run_cfg, backend: str) -> tuple[dict, list[str]]:
