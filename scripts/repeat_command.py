@@ -31,11 +31,8 @@ from footsim.walk.footsteps import DoubleStep
 def per_double_step(poses: list[Pose2D]) -> tuple[float, float, float]:
     """Mean (forward [m], lateral [m], turn [rad]) per double step from ``poses[0]`` to ``poses[-1]``,
     in the frame of ``poses[0]``."""
-    start, end, n = poses[0], poses[-1], len(poses) - 1
-    dx, dy = end.x - start.x, end.y - start.y
-    c, s = math.cos(start.theta), math.sin(start.theta)
-    turn = math.atan2(math.sin(end.theta - start.theta), math.cos(end.theta - start.theta))
-    return (c * dx + s * dy) / n, (-s * dx + c * dy) / n, turn / n
+    moved, n = poses[0].relative(poses[-1]), len(poses) - 1
+    return moved.x / n, moved.y / n, moved.theta / n
 
 
 def main(argv: list[str]) -> None:
