@@ -172,6 +172,7 @@ class TaskConfig:
     path_hint: bool = MISSING
     path_hint_lookahead: float = MISSING
     path_hint_clearance: float = MISSING
+    observe_history: int = MISSING
     success_bonus: Optional[float] = MISSING
     scenes: ScenesConfig = MISSING
 

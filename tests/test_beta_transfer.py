@@ -279,3 +279,26 @@ def test_footsim_eval_takes_the_beta_action_and_refuses_it_for_a_gaussian_policy
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "Beta mean" in json.loads((out / "summary.json").read_text())["label"]
+
+
+def test_obstacle_parent_seeds_a_history_run_that_acts_as_the_parent(tmp_path):
+    """53-D (goal+rays) seeds goal+rays+history (135-D with 2 earlier observations): the history
+    inputs start at zero weight, so whatever they hold the child acts as the parent."""
+    from footsim.rl.transfer import init_from_run
+
+    parent = PPO(BetaActorCriticPolicy, FootstepEnv(obstacles=True), device="cpu", seed=0)
+    parent.save(tmp_path / "model.zip")
+    (tmp_path / "config.yaml").write_text(
+        "backend: {name: pymunk}\ntask: {name: nav_obstacles, obstacles: true, n_rays: 36}\n"
+    )
+    history_task = {"name": "nav_obstacles", "obstacles": True, "n_rays": 36, "observe_history": 2}
+    child_env = FootstepEnv(task=history_task)
+    child = PPO(BetaActorCriticPolicy, child_env, device="cpu", seed=1)
+    record = init_from_run(child, tmp_path, history_task)
+    assert record["observation_expanded"] == "53 -> 135"
+    obs, _ = child_env.reset(seed=0)
+    history_changed = obs.copy()
+    history_changed[53:] = np.linspace(-1, 1, 82)
+    expected = parent.predict(obs[:53], deterministic=True)[0]
+    np.testing.assert_allclose(child.predict(obs, deterministic=True)[0], expected, atol=1e-6)
+    np.testing.assert_allclose(child.predict(history_changed, deterministic=True)[0], expected, atol=1e-6)

@@ -159,3 +159,37 @@ def test_contact_term_pays_only_for_steps_without_an_obstacle_contact():
     a = [0.0] * 6
     assert "contact" not in nav.reward_terms(Pose2D(), scene, a, a)  # only when the contact is given
     assert nav.reward_terms(Pose2D(), scene, a, a, collided=True)["contact"] == 0.0
+
+
+def test_history_holds_the_earlier_observations_newest_first():
+    """With the thesis's noise each observation differs; the history block of each observation is
+    the goal features and rays of the observations the test saw before it, newest first, and the
+    episode's first observation stands in for the ones before it (again after a reset)."""
+    task = dict(fconf.load_preset("task", "nav_obstacles"), observe_history=2)
+    env = FootstepEnv(task=task, noise=fconf.load_preset("noise", "localization"))
+    assert env.observation_space.shape == (53 + 2 * 41,)
+    assert env.task.observation_layout[-1] == ("history", 82)
+
+    def block(obs):  # goal features (5) and rays (36) of an observation
+        return np.concatenate([obs[:5], obs[17:53]])
+
+    for seed in (3, 4):  # the second reset starts a fresh history
+        obs, _ = env.reset(seed=seed)
+        seen = [obs]
+        np.testing.assert_array_equal(obs[53:], np.concatenate([block(obs), block(obs)]))
+        for _ in range(6):
+            obs, _, terminated, truncated, _ = env.step(np.array([0.3, 0.0, 0.1, 0.3, 0.0, 0.1], dtype=np.float32))
+            np.testing.assert_array_equal(env.task.observe(env._believed), obs)  # observing again changes nothing
+            older = seen[-2] if len(seen) > 1 else seen[-1]
+            np.testing.assert_array_equal(obs[53:], np.concatenate([block(seen[-1]), block(older)]))
+            assert not np.array_equal(block(obs), block(seen[-1]))  # fresh noise: the blocks differ
+            seen.append(obs)
+            if terminated or truncated:
+                break
+    assert NavTaskConfig(observe_history=3).observation_size == 17 + 3 * 5  # without obstacles: goal features only
+
+
+def test_bad_history_values_are_named():
+    for value in (-1, 1.5, True):
+        with pytest.raises(ValueError, match="task.observe_history"):
+            NavTaskConfig(observe_history=value)

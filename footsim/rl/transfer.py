@@ -133,6 +133,7 @@ def _layout(task) -> tuple[tuple[str, int], ...] | None:
         int(task.get("n_rays", 36)),
         bool(task.get("observe_imu", False)),
         bool(task.get("path_hint", False)),
+        int(task.get("observe_history", 0)),
     )
 
 

@@ -78,6 +78,10 @@ class NavTaskConfig:
     path_hint: bool = False  # append sin, cos of the bearing to a point on a global grid path (thesis ch. 9)
     path_hint_lookahead: float = 0.5  # [m] along the path past its point closest to the believed pose
     path_hint_clearance: float = 0.2  # [m] inflation of the obstacles for the path (footprint + margin)
+    #: append the goal features and rays of this many earlier observations, newest first (the
+    #: episode's first observation stands in for those before it): with the thesis's noise, fresh
+    #: each step, the policy can average measurements of the same goal and obstacles
+    observe_history: int = 0
     #: reward per remaining step on success; None: the maximum step reward, the sum of the reward
     #: weights (the thesis's 1): with a term added beside the thesis's five, a smaller bonus would
     #: make waiting pay more than arriving
@@ -107,6 +111,12 @@ class NavTaskConfig:
             raise ValueError(f"task.max_steps must be > 0, got {self.max_steps!r}")
         if int(self.n_rays) <= 0:
             raise ValueError(f"task.n_rays must be > 0, got {self.n_rays!r}")
+        if (
+            isinstance(self.observe_history, bool)
+            or int(self.observe_history) != self.observe_history
+            or self.observe_history < 0
+        ):
+            raise ValueError(f"task.observe_history must be an integer >= 0, got {self.observe_history!r}")
         if not 0.0 < self.fall_threshold < math.pi / 2:
             raise ValueError(f"task.fall_threshold must be in (0, pi/2) rad, got {self.fall_threshold!r}")
         if not (self.collision_ends_episode is None or isinstance(self.collision_ends_episode, bool)):
@@ -140,7 +150,14 @@ class NavTaskConfig:
     def observation_layout(self) -> tuple[tuple[str, int], ...]:
         """The observation's blocks in order: a run whose layout is a prefix of another's can
         seed it (``init_from`` gives the extra inputs zero weights)."""
-        return observation_layout(self.obstacles, int(self.n_rays), self.observe_imu, self.path_hint)
+        return observation_layout(
+            self.obstacles, int(self.n_rays), self.observe_imu, self.path_hint, int(self.observe_history)
+        )
+
+    @property
+    def history_block_size(self) -> int:
+        """Inputs per earlier observation in the history block: the goal features and the rays."""
+        return 5 + (int(self.n_rays) if self.obstacles else 0)
 
 
 def goal_features(pose: Pose2D, goal: Pose2D) -> tuple[float, float, float]:
@@ -175,9 +192,10 @@ _RAY_DIRECTIONS: dict[int, np.ndarray] = {}
 
 
 def observation_layout(
-    obstacles: bool, n_rays: int, observe_imu: bool = False, path_hint: bool = False
+    obstacles: bool, n_rays: int, observe_imu: bool = False, path_hint: bool = False, history: int = 0
 ) -> tuple[tuple[str, int], ...]:
-    """``(block, size)`` in observation order (see :func:`observation`)."""
+    """``(block, size)`` in observation order (see :func:`observation`; the history block,
+    last, is :meth:`NavTask.observe`'s)."""
     blocks = [("goal_and_actions", 17)]
     if obstacles:
         blocks.append(("rays", n_rays))
@@ -185,6 +203,8 @@ def observation_layout(
         blocks.append(("imu", 3))
     if path_hint:
         blocks.append(("path_hint", 2))
+    if history:
+        blocks.append(("history", history * (5 + (n_rays if obstacles else 0))))
     return tuple(blocks)
 
 
@@ -498,6 +518,10 @@ class NavTask:
     Attributes (read-only for callers): ``config`` (collision rule resolved), ``scene``, ``pose``
     (true pose, the last finite one), ``previous_actions`` (a(t-1), a(t-2)), ``tilt`` (roll,
     pitch, max tilt of the last step; zeros unless the task uses the tilt), ``steps``, ``outcome``.
+
+    With ``config.observe_history`` = H, :meth:`observe` appends the goal features and rays of the
+    H observations before this step's, newest first; :meth:`step` moves the last observed block
+    into that history, so observing twice between steps gives the same observation.
     """
 
     def __init__(self, config: NavTaskConfig, backend_kind: str):
@@ -516,6 +540,8 @@ class NavTask:
         self._features: tuple[float, float, float] | None = None  # goal features of self.pose after a step
         self._path_hint: PathHint | None = None
         self._arrays: tuple[np.ndarray, np.ndarray] | None = None
+        self._history: np.ndarray | None = None  # the earlier observations' blocks, newest first
+        self._observed: np.ndarray | None = None  # the block of the last observation
 
     @property
     def obstacles(self) -> bool:
@@ -538,6 +564,7 @@ class NavTask:
         self._features = None
         self._path_hint = PathHint(scene, pose, self.config) if self.config.path_hint else None
         self._arrays = scene_arrays(scene)  # the obstacles for the compiled kernels, once per episode
+        self._history = self._observed = None
         step = self._step
         step.scene, step.arrays = scene, self._arrays
 
@@ -578,6 +605,9 @@ class NavTask:
         if truncated:
             self.outcome = "timeout"
         self.previous_actions = (action, self.previous_actions[0])
+        if self._observed is not None and self._history is not None:
+            self._history = np.concatenate([self._observed, self._history[: -self._observed.size]])
+            self._observed = None
         return reward, terms, terminated, truncated
 
     def observe(self, believed: Pose2D) -> np.ndarray:
@@ -585,6 +615,15 @@ class NavTask:
         hint = _NO_HINT if self._path_hint is None else self._path_hint.bearing(believed)
         features = self._features if believed is self.pose else None
         assert self.scene is not None, "reset() before observe()"
-        return observation(
+        obs = observation(
             believed, self.scene, self.previous_actions, self.config, features, self.tilt, hint, self._arrays
         )
+        history = int(self.config.observe_history)
+        if not history:
+            return obs
+        n_rays = int(self.config.n_rays) if self.config.obstacles else 0
+        block = np.concatenate([obs[:5], obs[17 : 17 + n_rays]])
+        if self._history is None:  # the episode's first observation: no earlier ones
+            self._history = np.tile(block, history)
+        self._observed = block
+        return np.concatenate([obs, self._history])
