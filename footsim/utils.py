@@ -44,10 +44,15 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> None:
     atomic_save(save, path)
 
 
-def parse_kv_args(argv: list[str], allowed: dict[str, object], command: str) -> dict:
-    """Parse ``key=value`` arguments (the Hydra-like style of every footsim command)."""
+def parse_kv_args(argv: list[str], allowed: dict[str, object], command: str, usage: str | None = None) -> dict:
+    """Parse ``key=value`` arguments (the Hydra-like style of every footsim command); ``-h`` or
+    ``--help`` prints ``usage`` (the tool's module docstring) and exits."""
     out = dict(allowed)
     for arg in argv:
+        if arg in ("-h", "--help"):
+            print((usage or f"{command} key=value ...").strip())
+            print(f"keys (defaults): {', '.join(f'{k}={v}' for k, v in allowed.items())}")
+            raise SystemExit(0)
         if "=" not in arg:
             raise SystemExit(f"{command}: expected key=value, got {arg!r}; keys: {sorted(allowed)}")
         key, value = arg.split("=", 1)

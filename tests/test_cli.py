@@ -239,6 +239,19 @@ def test_scenes_cli_rejects_bad_n(tmp_path):
     assert proc.returncode != 0 and "n must be > 0" in proc.stderr
 
 
+@pytest.mark.parametrize("module", ["scenes", "bench", "walkcheck", "calibrate", "capability", "walkplot", "reproduce"])
+def test_key_value_tools_print_their_usage_on_help(module, capsys):
+    """``--help`` prints the tool's usage line (its module docstring, which names the command) and
+    exits 0 instead of refusing the argument; nothing runs."""
+    import importlib
+
+    tool = importlib.import_module(f"footsim.tools.{module}")
+    with pytest.raises(SystemExit) as stop:
+        tool.main(["--help"])
+    printed = capsys.readouterr().out
+    assert stop.value.code in (0, None) and printed.startswith(f"``footsim-{module}")
+
+
 @pytest.mark.parametrize(
     "command",
     [

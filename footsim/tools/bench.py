@@ -17,6 +17,7 @@ def main(argv: list[str] | None = None) -> None:
         sys.argv[1:] if argv is None else argv,
         {"what": "env2d,walk", "repeats": "5", "steps": "20000", "wrapped": "false"},
         "footsim-bench",
+        usage=__doc__,
     )
     names = [n for n in args["what"].split(",") if n]
     unknown = [n for n in names if n not in BENCHMARKS]

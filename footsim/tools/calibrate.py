@@ -35,6 +35,7 @@ def main(argv: list[str] | None = None) -> None:
             "compare": "",
         },
         "footsim-calibrate",
+        usage=__doc__,
     )
     require_known_backends([args["backend"]], "footsim-calibrate")
     if args["compare"]:

@@ -49,6 +49,7 @@ def main(argv: list[str] | None = None) -> None:
             "compare": "",
         },
         COMMAND,
+        usage=__doc__,
     )
     if args["compare"]:
         if backend_overrides or walk_overrides:

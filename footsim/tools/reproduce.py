@@ -58,7 +58,8 @@ def parse_args(argv: list[str]) -> dict:
     args["backends"] = {}
     for arg in argv:
         if arg in ("-h", "--help"):
-            raise SystemExit(__doc__)
+            print((__doc__ or "").strip())
+            raise SystemExit(0)
         if "=" not in arg:
             raise SystemExit(f"footsim-reproduce: expected key=value, got {arg!r}; keys: {sorted(DEFAULTS)}")
         key, value = arg.split("=", 1)

@@ -14,6 +14,7 @@ def main(argv: list[str] | None = None) -> None:
         sys.argv[1:] if argv is None else argv,
         {"out": None, "n": "500", "seed": "0", "obstacles": "false"},
         "footsim-scenes",
+        usage=__doc__,
     )
     if not args["out"]:
         raise SystemExit("footsim-scenes: out=FILE is required")

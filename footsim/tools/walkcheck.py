@@ -48,6 +48,7 @@ def main(argv: list[str] | None = None) -> None:
         own,
         {"backends": "mujoco,dm_control,pybullet", "walk": "", "robot": "", "convergence": "false", "out": ""},
         COMMAND,
+        usage=__doc__,
     )
     backends = [b for b in args["backends"].split(",") if b]
     require_known_backends(backends, COMMAND)

@@ -1,4 +1,4 @@
-"""``footsim-walkplot out=walk.png [steps="0.08,0,0,0.08,0,0;..."] [vel=vx,vy,omega] [n=1]
+"""``footsim-walkplot out=walk.png [steps="0.08,0,0,0.08,0,0;..."] [vel=vx,vy,omega] [n=2]
 [stop=true] [dt=0.002]``: plot the walk engine's trajectories (:mod:`footsim.walk.plot`).
 
 ``steps`` are double steps (right foot x y θ, then left foot x y θ, ``;`` between double steps),
@@ -22,6 +22,9 @@ _DEFAULTS = {"out": None, "steps": "0.08,0,0,0.08,0,0", "vel": "", "n": "2", "st
 def _parse_args(argv: list[str]) -> dict:
     args = dict(_DEFAULTS)
     for arg in argv:
+        if arg in ("-h", "--help"):
+            print(__doc__.strip())
+            raise SystemExit(0)
         key, sep, value = arg.partition("=")
         if not sep or key not in _DEFAULTS:
             raise SystemExit(f"footsim-walkplot: expected key=value with key in {sorted(_DEFAULTS)}, got {arg!r}")
