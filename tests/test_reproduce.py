@@ -13,6 +13,7 @@ import subprocess
 import textwrap
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from footsim import config as fconf
@@ -669,11 +670,34 @@ matrices:
     assert (
         "| MuJoCo, randomized (nav, 2 seeds) | 1.000 [1.000, 1.000] | 0.800 [0.700, 0.900] | 0.680 (1 seed) |" in text
     )
-    # 0.68 / 0.8 = 0.85 < 0.9
-    assert "| MuJoCo, randomized | default | 0.800 [0.700, 0.900] | pybullet | 0.85 | not met |" in text
+    # 0.68 / 0.8 = 0.85 < 0.9; without runs.csv rows the episodes and the range are unknown
+    assert "| MuJoCo, randomized | default | 0.800 [0.700, 0.900] | pybullet | — / — | 0.85 | — | not met |" in text
     cstats[(cells["pybullet"], "standard", "policy", "policy", "success")] = _success(0.76, 1)
     text = "\n".join(rp.matrix_lines(plan, matrix, cstats, "docs/results"))
-    assert "| pybullet | 0.95 | met |" in text  # 0.76 / 0.8
+    assert "| pybullet | — / — | 0.95 | — | met |" in text  # 0.76 / 0.8
+
+    # with runs.csv rows: 2 seeds x 50 own episodes (40 + 40 successes), 25 elsewhere (19 successes)
+    def row(cond, seed, success, n):
+        return {
+            "condition": cond,
+            "scene_set": "standard",
+            "kind": "policy",
+            "seed": str(seed),
+            "success": str(success),
+            "n_scenes": str(n),
+        }
+
+    runs = [row(cells["mujoco"], 0, 0.8, 50), row(cells["mujoco"], 1, 0.8, 50), row(cells["pybullet"], 0, 0.76, 25)]
+
+    def wilson(k, n, z=1.959963984540054):  # the textbook score interval, by hand
+        p = k / n
+        centre, half = p + z * z / (2 * n), z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
+        return (centre - half) / (1 + z * z / n), (centre + half) / (1 + z * z / n)
+
+    (own_low, own_high), (on_low, on_high) = wilson(80, 100), wilson(19, 25)
+    text = "\n".join(rp.matrix_lines(plan, matrix, cstats, "docs/results", runs))
+    expected_range = f"[{on_low / own_high:.2f}, {on_high / own_low:.2f}]"
+    assert f"| pybullet | 100 / 25 | 0.95 | {expected_range} | met |" in text
     rp.plot_matrix(tmp_path / "m.png", matrix, cstats)
     assert (tmp_path / "m.png").stat().st_size > 0
 
@@ -782,6 +806,51 @@ thesis:
     assert tried[2:6] == ["**Obstacle-free**", "", "* first attempt", "* second attempt"]
     with pytest.raises(rp.PlanError, match=r"thesis\[0\]\.tried: expected a text or a list of texts"):
         rp.load_plan(_plan(tmp_path, body.replace("[first attempt, second attempt]", "{a: 1}")))
+
+
+def test_a_change_between_conditions_with_the_same_seeds_carries_the_interval_of_its_per_seed_differences():
+    """``minus:`` with runs.csv rows: the mean of the per-seed differences and scipy's percentile
+    bootstrap of them (computed here directly); no interval when the seed sets differ."""
+    from scipy.stats import bootstrap
+
+    def row(cond, seed, success):
+        return {
+            "condition": cond,
+            "scene_set": "standard",
+            "kind": "policy",
+            "seed": str(seed),
+            "success": str(success),
+        }
+
+    parent, child = [0.96, 0.95, 0.97, 0.94, 0.96], [0.90, 0.93, 0.91, 0.90, 0.95]
+    runs = [row("noisefree", k, v) for k, v in enumerate(parent)] + [row("noise", k, v) for k, v in enumerate(child)]
+    cstats = {
+        (c, "standard", "policy", "policy", "success"): {"mean": str(sum(v) / 5), "ci_low": "", "ci_high": ""}
+        for c, v in (("noisefree", parent), ("noise", child))
+    }
+    fig = {"label": "change", "condition": "noise", "metric": "success", "minus": "noisefree"}
+    value, text = rp.figure_value(cstats, fig, runs=runs)
+    diffs = [c - p for c, p in zip(child, parent, strict=True)]
+    ci = bootstrap((diffs,), np.mean, n_resamples=10_000, method="percentile", rng=np.random.default_rng(0))
+    low, high = ci.confidence_interval
+    assert value == pytest.approx(-0.038)  # (4.59 - 4.78) / 5
+    assert text == f"-0.038 [{low:+.3f}, {high:+.3f}] over 5 paired seeds (noise − noisefree)"
+    assert low < -0.038 < high
+    value, text = rp.figure_value(cstats, fig, runs=runs[:-1])  # the noise condition lacks seed 4
+    assert text == "-0.038 (noise − noisefree)"
+
+
+def test_a_matrix_cell_is_never_a_condition_that_acts_or_judges_otherwise(tmp_path):
+    """A plan condition on the cell's backend that takes the Beta mean or its own backend settings
+    is not the row's policy as trained: the cell is derived instead."""
+    body = BASE + MATRIX.replace("  obst_on_mujoco:\n", "  obst_mean_on_mujoco:\n    beta_action: mean\n").replace(
+        "matrices:",
+        "  obst_nav_distance:\n    backend: pymunk\n    task: nav_obstacles\n    policies: obst\n"
+        "    randomization: default\n    backend_settings: {collision_model: nav_distance}\nmatrices:",
+    )
+    (matrix,) = rp.load_plan(_plan(tmp_path, body)).matrices
+    assert matrix.cells[("2D", "mujoco", "none")] == "obst_on_mujoco"
+    assert matrix.cells[("2D", "pymunk", "default")] == "obst_on_pymunk_dr_default"
 
 
 def test_rows_the_plan_no_longer_has_are_dropped(tmp_path):

@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 
 from footsim import zoo
-from footsim.results.stats import seed_stats
+from footsim.results.stats import bootstrap_interval, seed_stats
 from footsim.utils import atomic_save, atomic_write_text
 
 DEFAULT_PLAN = "study/v1.yaml"  # under conf/
@@ -467,6 +467,8 @@ def _matrix(path: Path, i: int, spec: Any, conditions: dict[str, Condition], set
                     for c in conditions.values()
                     if c.source == source
                     and (c.backend, c.task, c.noise, c.randomization) == (backend, task, row.noise, rand)
+                    and c.beta_action is None  # a cell acts and is judged as the row was trained
+                    and not c.backend_settings
                 ]
                 if same:
                     cells[(label, backend, rand)] = same[0]
@@ -1056,8 +1058,11 @@ def render_page(plan: Plan, runs: list[dict], cond_rows: list[dict], root: Path,
         "",
         *_scope_lines(plan),
         *_physics_lines(plan),
-        "Cells: mean over training seeds [95 % bootstrap interval]; a baseline is one evaluation. "
-        "Success time and double steps are over the successful episodes.",
+        "Cells: mean over training seeds [95 % percentile bootstrap interval over the seeds]; a baseline is "
+        "one evaluation. With 3-5 seeds that interval is narrow (it covers the true mean less often than its "
+        "95 % says), and [v, v] means every seed scored v. The IQM cuts whole seeds: with 3 it is the mean, "
+        "with 5 the mean of the middle 3. Success time and double steps: the mean over seeds of each seed's "
+        "mean over its successful episodes.",
         "",
         "The plan's scene sets: "
         + "; ".join(f"{name}: seed {seed}, {n} scenes" for name, (seed, n) in plan.scene_sets.items())
@@ -1127,8 +1132,8 @@ def render_page(plan: Plan, runs: list[dict], cond_rows: list[dict], root: Path,
                     lines.append("| " + " | ".join(str(c) for c in cells) + " |")
         lines.append("")
     for matrix in plan.matrices:
-        lines += matrix_lines(plan, matrix, cstats, data_dir)
-    lines += thesis_table(plan, cstats, root)
+        lines += matrix_lines(plan, matrix, cstats, data_dir, runs)
+    lines += thesis_table(plan, cstats, root, runs)
     lines += [
         "## Plots",
         "",
@@ -1170,9 +1175,38 @@ def _cell(
     return mean, f"{mean:.{digits}f}{sep}[{low:.{digits}f}, {high:.{digits}f}]"
 
 
-def matrix_lines(plan: Plan, matrix: Matrix, cstats: dict, data_dir: str) -> list[str]:
+def pooled_successes(runs: list[dict], condition: str, scene_set: str = "standard") -> tuple[int, int] | None:
+    """``(successes, episodes)`` of ``condition``'s policy episodes on ``scene_set`` over all its seeds
+    (runs.csv keeps each seed's success rate and scene count); None without rows."""
+    rows = [r for r in runs if r["condition"] == condition and r["scene_set"] == scene_set and r["kind"] == "policy"]
+    if not rows:
+        return None
+    episodes = sum(int(r["n_scenes"]) for r in rows)
+    return round(sum(_number(r["success"]) * int(r["n_scenes"]) for r in rows)), episodes
+
+
+def wilson_interval(successes: int, episodes: int, confidence: float = 0.95) -> tuple[float, float]:
+    """The Wilson score interval of a success rate (``scipy.stats.binomtest``)."""
+    from scipy.stats import binomtest
+
+    ci = binomtest(successes, episodes).proportion_ci(confidence_level=confidence, method="wilson")
+    return float(ci.low), float(ci.high)
+
+
+def _kept_range(own: tuple[int, int] | None, other: tuple[int, int] | None) -> str:
+    """The kept ratio's range from the two cells' Wilson intervals over their episodes: the other
+    backend's low over the own backend's high to its high over the own low (wide: both vary)."""
+    if own is None or other is None or own[0] == 0:
+        return "—"
+    own_low, own_high = wilson_interval(*own)
+    other_low, other_high = wilson_interval(*other)
+    return f"[{other_low / own_high:.2f}, {other_high / own_low:.2f}]"
+
+
+def matrix_lines(plan: Plan, matrix: Matrix, cstats: dict, data_dir: str, runs: list[dict] | None = None) -> list[str]:
     """A transfer matrix on the page: one success table per randomization and what each 3D-trained row
-    keeps of its own backend's success on the other 3D backends."""
+    keeps of its own backend's success on the other 3D backends (with ``runs``: each cell's episodes
+    and the ratio's range from their Wilson intervals)."""
     seed, n = plan.scene_sets[matrix.scene_set]
     cells = [plan.conditions[c] for c in matrix.cells.values()]
     split = sorted({c.n_scenes or n for c in cells if c.split_scenes})
@@ -1215,10 +1249,13 @@ def matrix_lines(plan: Plan, matrix: Matrix, cstats: dict, data_dir: str) -> lis
             continue
         for rand in matrix.randomizations:
             own, own_text = _cell(cstats, matrix, label, row.backend, rand)
+            own_count = pooled_successes(runs or [], matrix.cells[(label, row.backend, rand)], matrix.scene_set)
             for other in matrix.backends:
                 if other in ("pymunk", row.backend):
                     continue
                 value = _cell(cstats, matrix, label, other, rand)[0]
+                other_count = pooled_successes(runs or [], matrix.cells[(label, other, rand)], matrix.scene_set)
+                episodes = " / ".join("—" if c is None else str(c[1]) for c in (own_count, other_count))
                 ratio = value / own if own > 0 and not math.isnan(value) else math.nan
                 if row.randomization == "none":
                     verdict = "—"
@@ -1227,14 +1264,21 @@ def matrix_lines(plan: Plan, matrix: Matrix, cstats: dict, data_dir: str) -> lis
                 else:
                     verdict = "met" if ratio >= RETENTION_TARGET else "not met"
                 ratio_text = "—" if math.isnan(ratio) else f"{ratio:.2f}"
-                retained.append(f"| {label} | {rand} | {own_text} | {other} | {ratio_text} | {verdict} |")
+                retained.append(
+                    f"| {label} | {rand} | {own_text} | {other} | {episodes} | {ratio_text} "
+                    f"| {_kept_range(own_count, other_count)} | {verdict} |"
+                )
     if retained:
         lines += [
             f"What a 3D-trained row keeps on the other 3D backends (success there ÷ success on its own backend, "
-            f"under the same randomization; target for a row trained with randomization: ≥ {RETENTION_TARGET:g}):",
+            f"under the same randomization; target for a row trained with randomization: ≥ {RETENTION_TARGET:g}, "
+            "judged at the means). The two cells may hold different scenes and numbers of episodes (all seeds "
+            "together: own / on); the range divides the ends of their 95 % Wilson intervals over those "
+            "episodes, so it is wide where a cell has few:",
             "",
-            "| Trained | Randomization | Success on its own backend | On | Kept | Target |",
-            "|---|---|---|---|---|---|",
+            "| Trained | Randomization | Success on its own backend | On | Episodes (own / on) | Kept | Kept, range "
+            "| Target |",
+            "|---|---|---|---|---|---|---|---|",
             *retained,
             "",
         ]
@@ -1305,9 +1349,33 @@ def steps_to_reach(plan: Plan, condition: str, reference: str, root: Path) -> tu
     return step, f"{condition} reaches {about} after {step:.0f} steps"
 
 
-def figure_value(cstats: dict, fig: dict, plan: Plan | None = None, root: Path | None = None) -> tuple[float, str]:
+def seed_values(runs: list[dict], condition: str, metric: str) -> dict[int, float]:
+    """Each training seed's ``metric`` for ``condition``'s policy on the standard set (runs.csv)."""
+    return {
+        int(r["seed"]): _number(r[metric])
+        for r in runs
+        if r["condition"] == condition and r["scene_set"] == "standard" and r["kind"] == "policy"
+    }
+
+
+def paired_difference(runs: list[dict], condition: str, minus: str, metric: str) -> tuple[list[float], float, float]:
+    """The per-seed differences ``condition − minus`` (a noise fine-tune and its parent share each
+    seed) and the 95 % bootstrap interval of their mean; no differences and a NaN interval unless both
+    have the same seeds (the mean of the differences is then the difference of the means), NaN under two."""
+    ours, theirs = seed_values(runs, condition, metric), seed_values(runs, minus, metric)
+    if ours.keys() != theirs.keys():
+        return [], math.nan, math.nan
+    diffs = [ours[k] - theirs[k] for k in sorted(ours)]
+    low, high = bootstrap_interval(diffs)
+    return diffs, low, high
+
+
+def figure_value(
+    cstats: dict, fig: dict, plan: Plan | None = None, root: Path | None = None, runs: list[dict] | None = None
+) -> tuple[float, str]:
     """A thesis-table figure's value (mean over seeds on the standard set, or with ``reaches: C`` the
-    training steps after which the condition's training success first reaches C's final one) and its text."""
+    training steps after which the condition's training success first reaches C's final one) and its
+    text; a ``minus:`` figure given ``runs`` adds the interval of the per-seed differences."""
     if fig.get("reaches"):
         if plan is None or root is None:
             raise ValueError("a reaches: figure needs the plan and the zoo")
@@ -1322,6 +1390,13 @@ def figure_value(cstats: dict, fig: dict, plan: Plan | None = None, root: Path |
         other = _mean(cstats, fig["minus"], fig["metric"])
         value = value - other
         text = "—" if math.isnan(value) else f"{value:+.3f} ({fig['condition']} − {fig['minus']})"
+        if runs is not None and not math.isnan(value):
+            diffs, low, high = paired_difference(runs, fig["condition"], fig["minus"], fig["metric"])
+            if not math.isnan(low):
+                text = (
+                    f"{value:+.3f} [{low:+.3f}, {high:+.3f}] over {len(diffs)} paired seeds "
+                    f"({fig['condition']} − {fig['minus']})"
+                )
     return value, text
 
 
@@ -1354,15 +1429,17 @@ def target_verdict(fig: dict, value: float) -> str:
     return f"{fig['condition']} {subject} {op.replace('>=', '≥').replace('<=', '≤')} {limit:g}: {verdict}"
 
 
-def thesis_table(plan: Plan, cstats: dict, root: Path) -> list[str]:
+def thesis_table(plan: Plan, cstats: dict, root: Path, runs: list[dict] | None = None) -> list[str]:
     if not plan.thesis:
         return []
     lines = [
         "## The thesis side by side",
         "",
-        "footsim: mean over seeds on the standard scenes [95 % bootstrap interval]. Target: each target,",
-        "met or not, with footsim's figure; where a row's target is not met, what was tried is listed",
-        "below the table.",
+        "footsim: mean over seeds on the standard scenes [95 % bootstrap interval]; a change between two",
+        "conditions with the same training seeds (e.g. a fine-tune and its parent) is the mean of the",
+        "per-seed differences [their 95 % bootstrap interval]. Target: each target, met or not at the",
+        "mean, with footsim's figure; where a row's target is not met, what was tried is listed below the",
+        "table.",
         "",
         "| Question | Thesis | footsim | Target |",
         "|---|---|---|---|",
@@ -1371,7 +1448,7 @@ def thesis_table(plan: Plan, cstats: dict, root: Path) -> list[str]:
     for row in plan.thesis:
         figures, targets = [], []
         for fig in row["figures"]:
-            value, text = figure_value(cstats, fig, plan, root)
+            value, text = figure_value(cstats, fig, plan, root, runs)
             figures.append(f"{fig['label']} {text}")
             if fig.get("target"):
                 targets.append(target_verdict(fig, value))
@@ -1474,8 +1551,6 @@ def plot_learning_curves(path: Path, plan: Plan, root: Path) -> bool:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from footsim.results.stats import bootstrap_interval
 
     curves = [(cond, mean_curve(plan, cond, root)) for cond in plan.conditions.values() if not cond.policies]
     drawn = [(cond, curve) for cond, curve in curves if curve is not None]
