@@ -632,6 +632,18 @@ def test_bad_matrix_fails_naming_the_key(tmp_path, edit, message):
         rp.load_plan(_plan(tmp_path, edit(BASE + MATRIX)))
 
 
+def _policy_row(condition: str, seed: int, success: float, n_scenes: int = 500) -> dict:
+    """A runs.csv row of one policy seed on the standard set (the columns the page reads)."""
+    return {
+        "condition": condition,
+        "scene_set": "standard",
+        "kind": "policy",
+        "seed": str(seed),
+        "success": str(success),
+        "n_scenes": str(n_scenes),
+    }
+
+
 def _success(mean: float, n: int, low: float = math.nan, high: float = math.nan) -> dict:
     return {
         "mean": repr(mean),
@@ -677,17 +689,11 @@ matrices:
     assert "| pybullet | — / — | 0.95 | — | met |" in text  # 0.76 / 0.8
 
     # with runs.csv rows: 2 seeds x 50 own episodes (40 + 40 successes), 25 elsewhere (19 successes)
-    def row(cond, seed, success, n):
-        return {
-            "condition": cond,
-            "scene_set": "standard",
-            "kind": "policy",
-            "seed": str(seed),
-            "success": str(success),
-            "n_scenes": str(n),
-        }
-
-    runs = [row(cells["mujoco"], 0, 0.8, 50), row(cells["mujoco"], 1, 0.8, 50), row(cells["pybullet"], 0, 0.76, 25)]
+    runs = [
+        _policy_row(cells["mujoco"], 0, 0.8, 50),
+        _policy_row(cells["mujoco"], 1, 0.8, 50),
+        _policy_row(cells["pybullet"], 0, 0.76, 25),
+    ]
 
     def wilson(k, n, z=1.959963984540054):  # the textbook score interval, by hand
         p = k / n
@@ -813,17 +819,9 @@ def test_a_change_between_conditions_with_the_same_seeds_carries_the_interval_of
     bootstrap of them (computed here directly); no interval when the seed sets differ."""
     from scipy.stats import bootstrap
 
-    def row(cond, seed, success):
-        return {
-            "condition": cond,
-            "scene_set": "standard",
-            "kind": "policy",
-            "seed": str(seed),
-            "success": str(success),
-        }
-
     parent, child = [0.96, 0.95, 0.97, 0.94, 0.96], [0.90, 0.93, 0.91, 0.90, 0.95]
-    runs = [row("noisefree", k, v) for k, v in enumerate(parent)] + [row("noise", k, v) for k, v in enumerate(child)]
+    runs = [_policy_row("noisefree", k, v) for k, v in enumerate(parent)]
+    runs += [_policy_row("noise", k, v) for k, v in enumerate(child)]
     cstats = {
         (c, "standard", "policy", "policy", "success"): {"mean": str(sum(v) / 5), "ci_low": "", "ci_high": ""}
         for c, v in (("noisefree", parent), ("noise", child))
