@@ -1693,7 +1693,7 @@ def reproduce(
         print(f"dropped {len(dropped)} row(s) of the data files the plan no longer has: {', '.join(dropped)}")
     old_conds = read_csv(out / CONDITIONS_FILE)
     cond_rows = condition_rows(runs)
-    changed += differences(old_conds, cond_rows, (*KEY, "metric"), ("mean", "ci_low", "ci_high", "iqm"))
+    changed += differences(old_conds, cond_rows, (*KEY, "metric"), STAT_COLUMNS)
     write_csv(out / RUNS_FILE, (*KEY, *INFO, *METRICS), runs)
     write_csv(
         out / CONDITIONS_FILE, (*KEY, "metric", *STAT_COLUMNS), [{k: _text(v) for k, v in r.items()} for r in cond_rows]
