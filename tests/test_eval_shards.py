@@ -97,3 +97,15 @@ def test_baseline_shards_merge_to_the_single_run(tmp_path):
         assert {k: v for k, v in a.items() if "_ms" not in k} == {k: v for k, v in b.items() if "_ms" not in k}
     assert json.loads((sharded / "summary.json").read_text()) == json.loads((single / "summary.json").read_text())
     assert (sharded / "config_used.json").read_text() == (single / "config_used.json").read_text()
+
+
+@pytest.mark.slow
+def test_a_stochastic_policy_sharded_gives_the_single_run(run_dir, tmp_path):
+    """deterministic=false: each episode samples its actions from torch seeded with its own seed, so
+    a shard's episodes do not depend on the episodes another shard ran before them."""
+    common = [f"run={run_dir}", "n_scenes=4", "deterministic=false", "plot=false"]
+    single, sharded = tmp_path / "single", tmp_path / "sharded"
+    run("footsim-eval", *common, f"hydra.run.dir={single}")
+    run("footsim-eval", *common, "shard=1/2", f"hydra.run.dir={sharded}")
+    run("footsim-eval", *common, "shard=0/2", f"hydra.run.dir={sharded}")
+    assert (sharded / "episodes.csv").read_bytes() == (single / "episodes.csv").read_bytes()

@@ -75,6 +75,9 @@ def test_the_run_keeps_its_best_validated_policy_and_an_independent_evaluation_a
     assert _weights(run_dir / "model.zip") == _weights(run_dir / "checkpoints" / "best" / "model.zip")
     if selected["num_timesteps"] != 768:
         assert _weights(run_dir / "model.zip") != _weights(run_dir / "checkpoints" / "latest.zip")
+    # the 768 row scored the final policy (after the last update), the one the last checkpoint holds
+    final = run_dir / "checkpoints" / ("best" if rows[-1]["best"] == "1" else "candidate") / "model.zip"
+    assert _weights(final) == _weights(run_dir / "checkpoints" / "latest.zip")
 
     # footsim-eval on the validation scenes reproduces the figure the selection recorded
     out = tmp_path / "eval"
@@ -109,9 +112,9 @@ def test_a_resumed_run_keeps_its_validations_best_and_schedule(tmp_path):
     callback = make_selection_callback(selector)
     callback.model = SimpleNamespace(num_timesteps=30002)  # resumed at 30 002 steps
     callback._on_training_start()
-    for steps in (30002, 39998, 40000, 40002, 59998, 60000):
+    for steps in (30002, 39998, 40000, 40002, 59998, 60000):  # the step counts at rollout starts
         callback.model.num_timesteps = steps
-        callback._on_step()
+        callback._on_rollout_start()
     assert validated == [40000, 60000]  # the next multiples of 20 000, as the interrupted run would have
 
 
@@ -148,3 +151,22 @@ def test_validation_and_the_evaluation_after_training_can_take_another_noise(tmp
         "| policy (pymunk, nav, noise=none) |" in proc.stdout
         and OmegaConf.load(run_dir / "config.yaml").noise.name == "localization"
     )
+
+
+@pytest.mark.slow
+def test_validating_during_training_leaves_the_training_unchanged(tmp_path):
+    """The same seed with and without train.select ends in the same weights: validating a candidate
+    draws nothing from the training's random streams."""
+
+    def train(name, *extra):
+        run_dir = tmp_path / name
+        overrides = tiny_training(512, "eval.after_train=false", *extra)
+        proc = subprocess.run(
+            ["footsim-train", *overrides, f"hydra.run.dir={run_dir}"], capture_output=True, text=True, timeout=600
+        )
+        assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+        return _weights(run_dir / "checkpoints" / "latest.zip")
+
+    plain = train("plain")
+    selected = train("selected", "train.select.every=128", "train.select.n_scenes=3", "train.select.scenes_seed=7")
+    assert selected == plain

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -176,6 +177,22 @@ def write_policy(model, directory: Path) -> None:
         (directory / VECNORM_FILE).unlink()
 
 
+@contextlib.contextmanager
+def _random_state_kept():
+    """Python's, numpy's and torch's global random states as they were before the block: loading a
+    policy (SB3 re-seeds all three with the saved model's seed) must not change a training that
+    validates a candidate, nor anything else that draws from them."""
+    import random
+
+    import torch
+
+    python_state, numpy_state = random.getstate(), np.random.get_state()
+    with torch.random.fork_rng():
+        yield
+    random.setstate(python_state)
+    np.random.set_state(numpy_state)
+
+
 class LoadedPolicy:
     """A trained run's policy as a function obs → action (with its observation normalization)."""
 
@@ -190,7 +207,8 @@ class LoadedPolicy:
         path = run_dir / model_file
         if not path.is_file():
             raise FileNotFoundError(f"no trained model at {path}")
-        self.model = PPO.load(path, device="cpu")
+        with _random_state_kept():  # SB3's load seeds python's, numpy's and torch's global generators
+            self.model = PPO.load(path, device="cpu")
         self.model.policy.set_training_mode(False)  # evaluation only: no module changes mode afterwards
         if beta_action is not None:
             dist = self.model.policy.action_dist

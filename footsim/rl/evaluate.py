@@ -56,6 +56,14 @@ class PolicyController:
     def reset(self, scene: Scene, info: dict) -> None:
         pass
 
+    def begin_episode(self, seed: int) -> None:
+        """A stochastic policy samples from torch's generator seeded with the episode's seed, so an
+        episode's actions do not depend on the episodes before it (shards match a single process)."""
+        if not self.deterministic:
+            import torch
+
+            torch.manual_seed(seed)
+
     def __call__(self, obs: np.ndarray, info: dict) -> np.ndarray:
         return self.policy(obs, deterministic=self.deterministic)
 
@@ -76,6 +84,8 @@ class EpisodeRecord:
 
     def begin(self) -> None:
         self.obs, self.info = self.env.reset(seed=self.seed, options={"scene": self.scene})
+        if isinstance(self.controller, PolicyController):
+            self.controller.begin_episode(self.seed)
         self.controller.reset(self.scene, self.info)
 
     def step(self) -> dict:

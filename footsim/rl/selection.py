@@ -179,8 +179,10 @@ def make_selection_callback(selector: Selector):
     from stable_baselines3.common.callbacks import BaseCallback
 
     class ValidateEvery(BaseCallback):
-        """Validates at the first step at or past each multiple of ``every`` env steps (a resumed run
-        keeps the schedule of the run it continues)."""
+        """Validates the policy at the first rollout start at or past each multiple of ``every`` env
+        steps: right after an update, so each validation scores the policy as it is at that step
+        count, and the final policy (after the last update) is a step count of its own (a resumed
+        run keeps the schedule of the run it continues)."""
 
         def __init__(self):
             super().__init__()
@@ -190,12 +192,14 @@ def make_selection_callback(selector: Selector):
         def _on_training_start(self) -> None:
             self.next_at = (int(self.model.num_timesteps) // self.every + 1) * self.every
 
-        def _on_step(self) -> bool:
+        def _on_rollout_start(self) -> None:
             steps = int(self.model.num_timesteps)
             if steps >= self.next_at:
                 self.next_at = (steps // self.every + 1) * self.every
                 if steps not in selector.validated_steps:
                     selector.validate(self.model)
+
+        def _on_step(self) -> bool:
             return True
 
     return ValidateEvery()

@@ -10,12 +10,14 @@ its last (``footsim.rl.selection``; ``checkpoints/latest.zip`` stays the last).
 
 from __future__ import annotations
 
+import json
 import signal
 import threading
 import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
 from footsim.backends.base import BACKENDS, backend_class
@@ -40,9 +42,32 @@ from footsim.utils import atomic_save
 
 LATEST = "latest.zip"
 LATEST_VECNORM = "latest_vecnormalize.pkl"
+LATEST_INFO = "latest.json"  # the checkpoint's step count, readable without loading it
 
 
-def _env_factory(cfg: DictConfig, rank: int, worker_process: bool = False):
+def worker_seeds(seed: int, n_envs: int, resumed_at: int = 0) -> list[int]:
+    """Independent seeds of a run's env workers, from ``SeedSequence((seed, resumed_at))``.
+
+    Not SB3's ``seed + i``: with it run seed s + 1 would draw the scenes and noise of run s's workers
+    1..n-1, so a study's seeds would share most of their episodes.  ``resumed_at`` (the steps a resumed
+    run has done) gives a resume fresh streams instead of the run's first episodes again."""
+    return [int(child.generate_state(1)[0]) for child in np.random.SeedSequence([seed, resumed_at]).spawn(n_envs)]
+
+
+def seed_workers(venv, seed: int, resumed_at: int = 0) -> list[int]:
+    """Give ``venv``'s workers :func:`worker_seeds`, used at their next reset (as ``VecEnv.seed``'s
+    are).  Called after the model is built: SB3's model seeding sets ``seed + i`` again."""
+    base = venv
+    while hasattr(base, "venv"):  # VecNormalize and other wrappers
+        base = base.venv
+    if not hasattr(base, "_seeds"):
+        raise RuntimeError(f"{type(base).__name__} has no per-env seeds (_seeds): stable-baselines3 changed its VecEnv")
+    seeds = worker_seeds(seed, base.num_envs, resumed_at)
+    base._seeds = seeds
+    return seeds
+
+
+def _env_factory(cfg: DictConfig, rank: int, worker_process: bool = False, resumed_at: int = 0):
     plain = OmegaConf.to_container(cfg, resolve=True)
 
     def make():
@@ -55,13 +80,16 @@ def _env_factory(cfg: DictConfig, rank: int, worker_process: bool = False):
         if replay.get("prob", 0.0):
             from footsim.rl.replay import FailedSceneReplay
 
-            env = FailedSceneReplay(env, replay["prob"], replay["capacity"], seed=int(plain["seed"]) * 1000 + rank)
+            # its own stream per worker (and per resume: the replay buffer is not checkpointed)
+            replay_seed = np.random.SeedSequence([int(plain["seed"]), resumed_at, rank, 1]).generate_state(1)[0]
+            env = FailedSceneReplay(env, replay["prob"], replay["capacity"], seed=int(replay_seed))
         return Monitor(env)
 
     return make
 
 
-def build_vec_env(cfg: DictConfig):
+def build_vec_env(cfg: DictConfig, resumed_at: int = 0):
+    """The run's vectorized env (seed its workers with :func:`seed_workers` once the model exists)."""
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv, VecNormalize
 
     n_envs = int(cfg.train.n_envs)
@@ -78,9 +106,8 @@ def build_vec_env(cfg: DictConfig):
         multiprocessing.set_forkserver_preload(
             ["stable_baselines3.common.vec_env", "footsim.env", BACKENDS[cfg.backend.name].target.split(":")[0]]
         )
-    factories = [_env_factory(cfg, i, worker_process=kind == "subproc") for i in range(n_envs)]
+    factories = [_env_factory(cfg, i, worker_process=kind == "subproc", resumed_at=resumed_at) for i in range(n_envs)]
     venv: VecEnv = DummyVecEnv(factories) if kind == "dummy" else SubprocVecEnv(factories, start_method="forkserver")
-    venv.seed(int(cfg.seed))
     if cfg.agent.normalize_reward or cfg.agent.normalize_obs:
         venv = VecNormalize(
             venv,
@@ -179,7 +206,7 @@ def save_checkpoint(model, run_dir: Path) -> None:
     venv = model.get_vec_normalize_env()
     if venv is not None:
         atomic_save(venv.save, ckpt / LATEST_VECNORM, ".pkl")
-    write_json(ckpt / "latest.json", {"num_timesteps": int(model.num_timesteps), "time": time.time()})
+    write_json(ckpt / LATEST_INFO, {"num_timesteps": int(model.num_timesteps), "time": time.time()})
 
 
 def train(cfg: DictConfig, run_dir: Path) -> dict:
@@ -200,15 +227,26 @@ def train(cfg: DictConfig, run_dir: Path) -> dict:
     save_config(run_dir, cfg)
     torch.set_num_threads(1)  # small MLPs: threads cost more than they gain next to the env workers
 
-    venv = build_vec_env(cfg)
     agent = cfg.agent
     if resume_dir is not None:
+        from stable_baselines3.common.utils import set_random_seed
+
+        info_file = run_dir / CHECKPOINT_DIR / LATEST_INFO
+        done = int(json.loads(info_file.read_text())["num_timesteps"]) if info_file.is_file() else 0
+        venv = build_vec_env(cfg, resumed_at=done)
         if isinstance(venv, VecNormalize) and (run_dir / CHECKPOINT_DIR / LATEST_VECNORM).is_file():
             venv = VecNormalize.load(str(run_dir / CHECKPOINT_DIR / LATEST_VECNORM), venv.venv)
         model = PPO.load(run_dir / CHECKPOINT_DIR / LATEST, env=venv, device="cpu")
         done = int(model.num_timesteps)
+        # torch's and numpy's streams (action sampling, minibatches) go on from the run's seed and its
+        # steps, not from whatever this process had
+        resumed_seed = int(np.random.SeedSequence([int(cfg.seed), done]).generate_state(1)[0])
+        set_random_seed(resumed_seed)
+        model.action_space.seed(resumed_seed)
+        seed_workers(venv, int(cfg.seed), resumed_at=done)
         print(f"resuming {run_dir} at {done} of {cfg.train.total_timesteps} steps")
     else:
+        venv = build_vec_env(cfg)
         model = PPO(
             policy_class(agent),
             venv,
@@ -228,6 +266,7 @@ def train(cfg: DictConfig, run_dir: Path) -> dict:
             device="cpu",
             verbose=0,
         )
+        seed_workers(venv, int(cfg.seed))
         if cfg.get("init_from"):
             lineage = init_from_run(model, cfg.init_from, cfg.task)
             if agent.reset_log_std:
