@@ -302,3 +302,21 @@ def test_obstacle_parent_seeds_a_history_run_that_acts_as_the_parent(tmp_path):
     expected = parent.predict(obs[:53], deterministic=True)[0]
     np.testing.assert_allclose(child.predict(obs, deterministic=True)[0], expected, atol=1e-6)
     np.testing.assert_allclose(child.predict(history_changed, deterministic=True)[0], expected, atol=1e-6)
+
+
+def test_a_parent_and_child_that_disagree_on_observation_normalization_are_refused(tmp_path):
+    """Weights trained on normalized inputs would read raw ones (or the reverse): named, not copied."""
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    from footsim.rl.transfer import init_from_run
+
+    parent_venv = VecNormalize(DummyVecEnv([FootstepEnv]), norm_obs=True, norm_reward=False)
+    parent = PPO("MlpPolicy", parent_venv, device="cpu", seed=0)
+    parent.save(tmp_path / "model.zip")
+    parent_venv.save(tmp_path / "vecnormalize.pkl")
+    (tmp_path / "config.yaml").write_text("backend: {name: pymunk}\ntask: {name: nav}\n")
+    child = PPO("MlpPolicy", FootstepEnv(), device="cpu", seed=1)
+    before = [p.detach().clone() for p in child.policy.parameters()]
+    with pytest.raises(ValueError, match="agent.normalize_obs=true"):
+        init_from_run(child, tmp_path)
+    assert all(th.equal(a, b) for a, b in zip(before, child.policy.parameters(), strict=True))  # nothing copied

@@ -74,6 +74,19 @@ def init_from_run(model, parent_dir: str | Path, task=None) -> dict:
             f"init_from: the parent's policy is {type(parent.policy).__name__}, this run's is "
             f"{type(model.policy).__name__}; choose the same agent distribution (agent=ppo or agent=ppo_beta)"
         )
+    venv = model.get_vec_normalize_env()
+    stats_path = parent_dir / VECNORM_FILE
+    stats = None
+    if stats_path.is_file():
+        with open(stats_path, "rb") as fh:
+            stats = pickle.load(fh)
+    parent_normalizes, child_normalizes = bool(getattr(stats, "norm_obs", False)), bool(venv and venv.norm_obs)
+    if parent_normalizes != child_normalizes:  # the weights read inputs on another scale
+        raise ValueError(
+            f"init_from: the parent {'normalizes' if parent_normalizes else 'does not normalize'} its "
+            f"observations and this run {'does' if child_normalizes else 'does not'}: set "
+            f"agent.normalize_obs={str(parent_normalizes).lower()} as the parent trained"
+        )
     state = parent.policy.state_dict()
     if expand:
         state = _widen_first_layers(state, model.policy.state_dict())
@@ -85,14 +98,9 @@ def init_from_run(model, parent_dir: str | Path, task=None) -> dict:
         ) from None
 
     copied_stats = False
-    venv = model.get_vec_normalize_env()
-    stats_path = parent_dir / VECNORM_FILE
-    if venv is not None and venv.norm_obs and stats_path.is_file():
-        with open(stats_path, "rb") as fh:
-            stats = pickle.load(fh)
-        if getattr(stats, "norm_obs", False):
-            venv.obs_rms = _widen_obs_rms(stats.obs_rms, ours[0]) if expand else stats.obs_rms
-            copied_stats = True
+    if venv is not None and stats is not None and child_normalizes and parent_normalizes:
+        venv.obs_rms = _widen_obs_rms(stats.obs_rms, ours[0]) if expand else stats.obs_rms
+        copied_stats = True
     return {
         "init_from": str(parent_dir),
         "parent_backend": parent_cfg.backend.name,
