@@ -154,11 +154,6 @@ class NavTaskConfig:
             self.obstacles, int(self.n_rays), self.observe_imu, self.path_hint, int(self.observe_history)
         )
 
-    @property
-    def history_block_size(self) -> int:
-        """Inputs per earlier observation in the history block: the goal features and the rays."""
-        return 5 + (int(self.n_rays) if self.obstacles else 0)
-
 
 def goal_features(pose: Pose2D, goal: Pose2D) -> tuple[float, float, float]:
     """Distance d, goal-orientation error α and bearing β (thesis Fig. 5.3), all from ``pose``.
