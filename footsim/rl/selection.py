@@ -123,9 +123,9 @@ class Selector:
         summary = summarize(records)
         result = {"num_timesteps": int(model.num_timesteps), **{k: summary[k] for k in COLUMNS[1:-1]}}
         is_best = _better(result, self.best)
-        if is_best:
+        if is_best:  # its validation goes in with it: best/ never holds one policy and another's figures
+            write_json(candidate / BEST_INFO, result)
             _move_dir(candidate, self.dir / BEST_DIR)
-            write_json(self.dir / BEST_DIR / BEST_INFO, result)
             self.best = result
         self.rows.append({**result, "best": int(is_best)})
         buffer = io.StringIO()

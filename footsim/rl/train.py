@@ -154,18 +154,25 @@ def _make_stop_callback(stop: StopOnInterrupt):
     return StopWhenRequested()
 
 
-def _make_checkpoint_callback(run_dir: Path, every: int, n_envs: int):
+def _make_checkpoint_callback(run_dir: Path, every: int):
     from stable_baselines3.common.callbacks import BaseCallback
 
     class AtomicCheckpoint(BaseCallback):
-        """Saves model (and normalization stats) atomically, so an interruption never corrupts them."""
+        """Saves model (and normalization stats) atomically, so an interruption never corrupts them,
+        at the first step at or past each multiple of ``every`` env steps of the whole run (a resumed
+        run keeps the schedule of the run it continues)."""
 
         def __init__(self):
             super().__init__()
-            self.every = max(every // n_envs, 1)
+            self.next_at = every
+
+        def _on_training_start(self) -> None:
+            self.next_at = (int(self.model.num_timesteps) // every + 1) * every
 
         def _on_step(self) -> bool:
-            if self.n_calls % self.every == 0:
+            steps = int(self.model.num_timesteps)
+            if steps >= self.next_at:
+                self.next_at = (steps // every + 1) * every
                 save_checkpoint(self.model, run_dir)
             return True
 
@@ -283,7 +290,7 @@ def train(cfg: DictConfig, run_dir: Path) -> dict:
 
         with StopOnInterrupt() as stop:
             callbacks = [
-                _make_checkpoint_callback(run_dir, int(cfg.train.checkpoint_freq), int(cfg.train.n_envs)),
+                _make_checkpoint_callback(run_dir, int(cfg.train.checkpoint_freq)),
                 _make_outcome_callback(),
                 _make_stop_callback(stop),
             ]
