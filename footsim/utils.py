@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import os
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 
@@ -44,7 +44,7 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> None:
     atomic_save(save, path)
 
 
-def parse_kv_args(argv: list[str], allowed: dict[str, object], command: str, usage: str | None = None) -> dict:
+def parse_kv_args(argv: list[str], allowed: Mapping[str, object], command: str, usage: str | None = None) -> dict:
     """Parse ``key=value`` arguments (the Hydra-like style of every footsim command); ``-h`` or
     ``--help`` prints ``usage`` (the tool's module docstring) and exits."""
     out = dict(allowed)

@@ -1175,10 +1175,15 @@ def _cell(
     return mean, f"{mean:.{digits}f}{sep}[{low:.{digits}f}, {high:.{digits}f}]"
 
 
+def policy_rows(runs: list[dict], condition: str, scene_set: str = "standard") -> list[dict]:
+    """runs.csv's rows of ``condition``'s policy seeds on ``scene_set``."""
+    return [r for r in runs if r["condition"] == condition and r["scene_set"] == scene_set and r["kind"] == "policy"]
+
+
 def pooled_successes(runs: list[dict], condition: str, scene_set: str = "standard") -> tuple[int, int] | None:
     """``(successes, episodes)`` of ``condition``'s policy episodes on ``scene_set`` over all its seeds
     (runs.csv keeps each seed's success rate and scene count); None without rows."""
-    rows = [r for r in runs if r["condition"] == condition and r["scene_set"] == scene_set and r["kind"] == "policy"]
+    rows = policy_rows(runs, condition, scene_set)
     if not rows:
         return None
     episodes = sum(int(r["n_scenes"]) for r in rows)
@@ -1351,11 +1356,7 @@ def steps_to_reach(plan: Plan, condition: str, reference: str, root: Path) -> tu
 
 def seed_values(runs: list[dict], condition: str, metric: str) -> dict[int, float]:
     """Each training seed's ``metric`` for ``condition``'s policy on the standard set (runs.csv)."""
-    return {
-        int(r["seed"]): _number(r[metric])
-        for r in runs
-        if r["condition"] == condition and r["scene_set"] == "standard" and r["kind"] == "policy"
-    }
+    return {int(r["seed"]): _number(r[metric]) for r in policy_rows(runs, condition)}
 
 
 def paired_difference(runs: list[dict], condition: str, minus: str, metric: str) -> tuple[list[float], float, float]:
@@ -1481,11 +1482,7 @@ def plot_success_by_seed(path: Path, plan: Plan, runs: list[dict], cstats_rows: 
         if r["scene_set"] == "standard" and r["metric"] == "success"
     }
     for i, cond in enumerate(conds):
-        seeds = [
-            _number(r["success"])
-            for r in runs
-            if r["condition"] == cond and r["scene_set"] == "standard" and r["kind"] == "policy"
-        ]
+        seeds = [_number(r["success"]) for r in policy_rows(runs, cond)]
         ax.plot(seeds, [i] * len(seeds), "o", color="tab:blue", alpha=0.5, label="seed")
         row = stats.get((cond, "policy", "policy"))
         if row is not None and not math.isnan(_number(row["ci_low"])):

@@ -10,7 +10,6 @@ its last (``footsim.rl.selection``; ``checkpoints/latest.zip`` stays the last).
 
 from __future__ import annotations
 
-import json
 import signal
 import threading
 import time
@@ -42,7 +41,6 @@ from footsim.utils import atomic_save
 
 LATEST = "latest.zip"
 LATEST_VECNORM = "latest_vecnormalize.pkl"
-LATEST_INFO = "latest.json"  # the checkpoint's step count, readable without loading it
 
 
 def worker_seeds(seed: int, n_envs: int, resumed_at: int = 0) -> list[int]:
@@ -213,7 +211,7 @@ def save_checkpoint(model, run_dir: Path) -> None:
     venv = model.get_vec_normalize_env()
     if venv is not None:
         atomic_save(venv.save, ckpt / LATEST_VECNORM, ".pkl")
-    write_json(ckpt / LATEST_INFO, {"num_timesteps": int(model.num_timesteps), "time": time.time()})
+    write_json(ckpt / "latest.json", {"num_timesteps": int(model.num_timesteps), "time": time.time()})
 
 
 def train(cfg: DictConfig, run_dir: Path) -> dict:
@@ -238,13 +236,12 @@ def train(cfg: DictConfig, run_dir: Path) -> dict:
     if resume_dir is not None:
         from stable_baselines3.common.utils import set_random_seed
 
-        info_file = run_dir / CHECKPOINT_DIR / LATEST_INFO
-        done = int(json.loads(info_file.read_text())["num_timesteps"]) if info_file.is_file() else 0
+        model = PPO.load(run_dir / CHECKPOINT_DIR / LATEST, device="cpu")
+        done = int(model.num_timesteps)
         venv = build_vec_env(cfg, resumed_at=done)
         if isinstance(venv, VecNormalize) and (run_dir / CHECKPOINT_DIR / LATEST_VECNORM).is_file():
             venv = VecNormalize.load(str(run_dir / CHECKPOINT_DIR / LATEST_VECNORM), venv.venv)
-        model = PPO.load(run_dir / CHECKPOINT_DIR / LATEST, env=venv, device="cpu")
-        done = int(model.num_timesteps)
+        model.set_env(venv)
         # torch's and numpy's streams (action sampling, minibatches) go on from the run's seed and its
         # steps, not from whatever this process had
         resumed_seed = int(np.random.SeedSequence([int(cfg.seed), done]).generate_state(1)[0])

@@ -11,6 +11,7 @@ import sys
 
 import numpy as np
 
+from footsim.utils import parse_kv_args
 from footsim.walk.engine import QuinticWalk
 from footsim.walk.footsteps import DoubleStep, FootstepGeometry, StepLimits
 from footsim.walk.params import WalkParams
@@ -20,15 +21,7 @@ _DEFAULTS = {"out": None, "steps": "0.08,0,0,0.08,0,0", "vel": "", "n": "2", "st
 
 
 def _parse_args(argv: list[str]) -> dict:
-    args = dict(_DEFAULTS)
-    for arg in argv:
-        if arg in ("-h", "--help"):
-            print(__doc__.strip())
-            raise SystemExit(0)
-        key, sep, value = arg.partition("=")
-        if not sep or key not in _DEFAULTS:
-            raise SystemExit(f"footsim-walkplot: expected key=value with key in {sorted(_DEFAULTS)}, got {arg!r}")
-        args[key] = value
+    args = parse_kv_args(argv, _DEFAULTS, "footsim-walkplot", usage=__doc__)
     if not args["out"]:
         raise SystemExit("footsim-walkplot: out=FILE.png is required")
     return args
