@@ -34,13 +34,22 @@ def test_log_prob_and_entropy_match_torch_beta_rescaled():
 
 def test_samples_never_leave_the_bounds_and_mode_is_the_beta_mode():
     dist = BetaDistribution(6, -np.ones(6), np.ones(6))
-    params = th.randn(2000, 12) * 5
+    params = th.randn(2000, 12, generator=th.Generator().manual_seed(0)) * 5
+    # near-uniform rows: α = 1 + 2⁻²³ beside β = 1, where float32's α + β − 2 is 0 (the mode is the
+    # upper bound), and α = β = 1 exactly (uniform: the middle)
+    params[0, :6] = -15.9
+    params[0, 6:] = -40.0
+    params[1, :] = -120.0
     dist.proba_distribution(params)
     samples = dist.sample()
     assert th.all(samples > -1) and th.all(samples < 1)
-    a = dist.distribution.concentration1
-    b = dist.distribution.concentration0
-    np.testing.assert_allclose(dist.mode(), -1 + 2 * (a - 1) / (a + b - 2), rtol=1e-5, atol=1e-6)
+    a = dist.distribution.concentration1.double().numpy()
+    b = dist.distribution.concentration0.double().numpy()
+    assert np.all(a[0] > 1) and np.all(b[0] == 1) and np.all(a[1] == 1) and np.all(b[1] == 1)
+    with np.errstate(invalid="ignore"):
+        expected = np.where((a == 1) & (b == 1), 0.0, -1 + 2 * (a - 1) / (a + b - 2))  # float64: exact here
+    np.testing.assert_allclose(dist.mode(), expected, rtol=1e-5, atol=1e-6)
+    np.testing.assert_array_equal(dist.mode()[:2].numpy(), np.array([[1.0] * 6, [0.0] * 6], dtype=np.float32))
 
 
 def test_the_mode_of_a_uniform_beta_is_the_middle_not_nan():

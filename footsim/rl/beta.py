@@ -85,9 +85,11 @@ class BetaDistribution(Distribution):
         mean = alpha / (alpha + beta)
         if self.deterministic_action == "mean":
             return self._from_unit(mean)
-        # Where both softplus terms underflow (head outputs below about -17 in float32), α = β = 1:
-        # the uniform density has no mode and the formula gives 0/0, so take its mean, the middle.
-        spread = alpha + beta - 2.0
+        # The spread is summed from α − 1 and β − 1, not as α + β − 2: in float32 α = 1 + 2⁻²³ and β = 1
+        # sum to 2 and would give a division by zero where the mode is the upper bound. Where both
+        # softplus terms underflow (head outputs below about -17), α = β = 1: the uniform density has
+        # no mode and the formula gives 0/0, so take its mean, the middle.
+        spread = (alpha - 1.0) + (beta - 1.0)
         return self._from_unit(th.where(spread > 0, (alpha - 1.0) / spread, mean))
 
     def mode(self) -> th.Tensor:
