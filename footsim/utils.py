@@ -44,6 +44,30 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> None:
     atomic_save(save, path)
 
 
+def atomic_write_texts(files: Mapping[str | os.PathLike, str]) -> None:
+    """Several files that belong together (a data file and the one derived from it): every text is
+    written and synced to a temporary file first, and only then are they moved into place, one
+    after the other.  A failure while writing replaces none of them; the moves themselves are the
+    only window in which a crash could leave the files from two different writes."""
+    temps: list[tuple[str, Path]] = []
+    try:
+        for path, text in files.items():
+            path = Path(path)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+            temps.append((tmp, path))
+            with os.fdopen(fd, "w") as fh:
+                fh.write(text)
+                fh.flush()
+                os.fsync(fh.fileno())
+            os.chmod(tmp, _default_file_mode())
+        for tmp, path in temps:
+            os.replace(tmp, path)
+    finally:
+        for tmp, _ in temps:
+            Path(tmp).unlink(missing_ok=True)
+
+
 def parse_kv_args(argv: list[str], allowed: Mapping[str, object], command: str, usage: str | None = None) -> dict:
     """Parse ``key=value`` arguments (the Hydra-like style of every footsim command); ``-h`` or
     ``--help`` prints ``usage`` (the tool's module docstring) and exits."""

@@ -1044,3 +1044,20 @@ def test_the_study_judges_the_2d_obstacle_policies_by_the_thesis_collision_check
         assert env.backend.collision_model == "nav_distance"
     finally:
         env.close()
+
+
+def test_the_data_file_pair_is_replaced_together_or_not_at_all(tmp_path):
+    from footsim.utils import atomic_write_texts
+
+    runs, conditions = tmp_path / rp.RUNS_FILE, tmp_path / rp.CONDITIONS_FILE
+    runs.write_text("old runs\n")
+    conditions.write_text("old conditions\n")
+    blocked = tmp_path / "not_a_dir"
+    blocked.write_text("a file where the second file's directory would be\n")
+    with pytest.raises(OSError):
+        atomic_write_texts({runs: "new runs\n", blocked / rp.CONDITIONS_FILE: "new conditions\n"})
+    assert runs.read_text() == "old runs\n"  # the first file's new text was written, but not moved in
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([rp.RUNS_FILE, rp.CONDITIONS_FILE, "not_a_dir"])
+    atomic_write_texts({runs: "new runs\n", conditions: "new conditions\n"})
+    assert (runs.read_text(), conditions.read_text()) == ("new runs\n", "new conditions\n")
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([rp.RUNS_FILE, rp.CONDITIONS_FILE, "not_a_dir"])

@@ -44,7 +44,7 @@ import numpy as np
 
 from footsim import zoo
 from footsim.results.stats import bootstrap_interval, seed_stats
-from footsim.utils import atomic_save, atomic_write_text
+from footsim.utils import atomic_save, atomic_write_text, atomic_write_texts
 
 DEFAULT_PLAN = "study/v1.yaml"  # under conf/
 #: Per evaluation: the identity of a row of runs.csv.
@@ -876,13 +876,13 @@ def read_csv(path: Path) -> list[dict]:
         return list(csv.DictReader(fh))
 
 
-def write_csv(path: Path, columns: Sequence[str], rows: Iterable[dict]) -> None:
+def csv_text(columns: Sequence[str], rows: Iterable[dict]) -> str:
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=list(columns), lineterminator="\n")
     writer.writeheader()
     for row in rows:
         writer.writerow({c: _text(row.get(c)) for c in columns})
-    atomic_write_text(path, buffer.getvalue())
+    return buffer.getvalue()
 
 
 def merge_rows(old: list[dict], new: list[dict], key: Sequence[str]) -> list[dict]:
@@ -1691,9 +1691,15 @@ def reproduce(
     old_conds = read_csv(out / CONDITIONS_FILE)
     cond_rows = condition_rows(runs)
     changed += differences(old_conds, cond_rows, (*KEY, "metric"), STAT_COLUMNS)
-    write_csv(out / RUNS_FILE, (*KEY, *INFO, *METRICS), runs)
-    write_csv(
-        out / CONDITIONS_FILE, (*KEY, "metric", *STAT_COLUMNS), [{k: _text(v) for k, v in r.items()} for r in cond_rows]
+    # conditions.csv is computed from runs.csv: the pair is written together, so that an interrupted
+    # write leaves both as they were
+    atomic_write_texts(
+        {
+            out / RUNS_FILE: csv_text((*KEY, *INFO, *METRICS), runs),
+            out / CONDITIONS_FILE: csv_text(
+                (*KEY, "metric", *STAT_COLUMNS), [{k: _text(v) for k, v in r.items()} for r in cond_rows]
+            ),
+        }
     )
     cond_rows = read_csv(out / CONDITIONS_FILE)  # the page shows what the file holds
     if plots:

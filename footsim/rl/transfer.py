@@ -151,8 +151,11 @@ def _names(layout) -> str:
 
 def _widen_obs_rms(rms, size: int):
     """The parent's observation statistics for a larger observation: the new inputs get mean 0 and
-    variance 1, so normalization passes them through unchanged until training updates them (their
-    input weights start at zero, so the child still begins as the parent's policy)."""
+    variance 1, so normalization passes them through unchanged (their input weights start at zero,
+    so the child still begins as the parent's policy).  SB3's running statistics keep one count for
+    all inputs, the parent's, so training moves the new inputs' mean and variance only as fast as
+    the old ones' (a run as long as the parent's moves them half-way): they stay near unscaled,
+    which the task's observations allow, each lying in [-1, 1] (tanh, sin and cos)."""
     widened = copy.deepcopy(rms)
     extra = size - rms.mean.shape[0]
     widened.mean = np.concatenate([rms.mean, np.zeros(extra, dtype=rms.mean.dtype)])
