@@ -188,7 +188,7 @@ class FootstepEnv(gym.Env):
     def step(self, action):
         if self.scene is None:  # not reset yet, or closed (close() forgets the scene)
             raise RuntimeError(self._closed_message("step") if self.closed else "step() called before reset()")
-        action = action_values(action)  # 6 finite floats clipped to [-1, 1]; raises otherwise
+        action = self.task.command(action_values(action))  # 6 finite floats clipped to [-1, 1]; raises otherwise
         double_step = DoubleStep.from_unit(action, self.limits)
         if self.randomizer.active:
             changed = self.randomizer.step(self._random_rng)

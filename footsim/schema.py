@@ -173,6 +173,7 @@ class TaskConfig:
     path_hint_lookahead: float = MISSING
     path_hint_clearance: float = MISSING
     observe_history: int = MISSING
+    start_in_place: int = MISSING
     success_bonus: Optional[float] = MISSING
     scenes: ScenesConfig = MISSING
 

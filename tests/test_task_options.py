@@ -193,3 +193,35 @@ def test_bad_history_values_are_named():
     for value in (-1, 1.5, True):
         with pytest.raises(ValueError, match="task.observe_history"):
             NavTaskConfig(observe_history=value)
+
+
+def test_start_in_place_walks_in_place_first_then_executes_the_actions():
+    """With start_in_place=2 the first two double steps are walked in place whatever the action
+    (the pose stays the start pose, the time runs on), and the third executes the action exactly
+    as the first step of an episode without the option does."""
+    scene = Scene(goal=Pose2D(1.5, 0.4, 0.3))
+    action = np.array([0.6, -0.3, 0.4, 0.5, 0.2, -0.1], dtype=np.float32)
+    plain = FootstepEnv()
+    started = FootstepEnv(task=dict(fconf.load_preset("task", "nav"), start_in_place=2))
+    plain.reset(seed=5, options={"scene": scene})
+    plain.step(action)
+    moved = plain.task.pose
+    started.reset(seed=5, options={"scene": scene})
+    start = started.task.pose
+    durations = []
+    for _ in range(2):
+        _, _, terminated, truncated, info = started.step(action)
+        assert not (terminated or truncated)
+        assert tuple(started.task.pose) == pytest.approx(tuple(start), abs=1e-12)  # in place
+        assert started.task.previous_actions[0] == [0.0] * 6  # the reward's continuity sees the executed step
+        durations.append(info["time_s"])
+    assert durations[0] > 0 and durations[1] == pytest.approx(2 * durations[0])
+    started.step(action)
+    assert tuple(started.task.pose) == pytest.approx(tuple(moved), abs=1e-9)
+    assert started.task.steps == 3
+
+
+def test_bad_start_in_place_values_are_named():
+    for value in (-1, 1.5, True, 100):
+        with pytest.raises(ValueError, match="task.start_in_place"):
+            NavTaskConfig(start_in_place=value)

@@ -82,6 +82,10 @@ class NavTaskConfig:
     #: episode's first observation stands in for those before it): with the thesis's noise, fresh
     #: each step, the policy can average measurements of the same goal and obstacles
     observe_history: int = 0
+    #: walk this many double steps in place at the start of each episode, whatever the actions: the
+    #: robot starts from standing into a steady walk before it takes the policy's steps (a 3D step
+    #: from standing falls on more of the action box than one from a steady walk: docs/capability/)
+    start_in_place: int = 0
     #: reward per remaining step on success; None: the maximum step reward, the sum of the reward
     #: weights (the thesis's 1): with a term added beside the thesis's five, a smaller bonus would
     #: make waiting pay more than arriving
@@ -117,6 +121,14 @@ class NavTaskConfig:
             or self.observe_history < 0
         ):
             raise ValueError(f"task.observe_history must be an integer >= 0, got {self.observe_history!r}")
+        if (
+            isinstance(self.start_in_place, bool)
+            or int(self.start_in_place) != self.start_in_place
+            or not 0 <= self.start_in_place < int(self.max_steps)
+        ):
+            raise ValueError(
+                f"task.start_in_place must be an integer in [0, task.max_steps), got {self.start_in_place!r}"
+            )
         if not 0.0 < self.fall_threshold < math.pi / 2:
             raise ValueError(f"task.fall_threshold must be in (0, pi/2) rad, got {self.fall_threshold!r}")
         if not (self.collision_ends_episode is None or isinstance(self.collision_ends_episode, bool)):
@@ -562,6 +574,11 @@ class NavTask:
         self._history = self._observed = None
         step = self._step
         step.scene, step.arrays = scene, self._arrays
+
+    def command(self, action: list[float]) -> list[float]:
+        """The action the robot executes for the policy's ``action``: in place for the episode's
+        first ``start_in_place`` double steps, else ``action`` itself."""
+        return _ZERO_ACTION if self.steps < self.config.start_in_place else action
 
     def step(self, result: Any, action: list[float]) -> tuple[float, dict[str, float], bool, bool]:
         """``(reward, reward terms, terminated, truncated)`` of one executed double step.
