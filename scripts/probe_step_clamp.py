@@ -1,8 +1,14 @@
 """Probe: a MuJoCo obstacle-free zoo policy on the standard scenes whose goal lies within ``near`` m,
-with the chosen action dimensions clamped to ±c of the step limits (unclamped: c = 1), at the study's
-2 ms timestep.  Prints one JSON line of outcome counts.
+its actions filtered, at the study's 2 ms timestep.  Prints one JSON line of outcome counts and the
+double step each fall came at.
 
-    python scripts/probe_step_clamp.py mj_nav_300k_s0 0.5 0.5 2,5      # each foot's turn at ±0.5
+    python scripts/probe_step_clamp.py name=mj_nav_300k_s0 clamp=0.5 dims=2,5   # each foot's turn at ±0.5
+    python scripts/probe_step_clamp.py name=mj_nav_300k_s0 rate=0.3 dims=0,1,2,3,4,5  # each value moves ≤ 0.3 a step
+    python scripts/probe_step_clamp.py name=mj_nav_300k_s0 clamp=0 first=1 dims=0,1,2,3,4,5  # first step in place
+
+``clamp=C``: the chosen action dimensions clamped to ±C of the step limits (1: unclamped), on the
+episode's first ``first`` double steps (0: on every one); ``rate=R``: each chosen dimension moves at
+most R from the double step before; ``near=D`` (m): the scenes probed (``near=inf``: all 500).
 """
 
 import json
@@ -19,9 +25,17 @@ from footsim import zoo
 from footsim.results import reproduce as rp
 from footsim.rl.evaluate import evaluate
 from footsim.tasks.scenes import sample_scenes
+from footsim.utils import parse_kv_args
 
-name, clamp, near = sys.argv[1], float(sys.argv[2]), float(sys.argv[3])
-dims = [int(d) for d in sys.argv[4].split(",")] if len(sys.argv) > 4 else [2, 5]
+args = parse_kv_args(
+    sys.argv[1:],
+    {"name": "mj_nav_300k_s0", "clamp": "1", "near": "0.5", "dims": "2,5", "rate": "inf", "first": "0"},
+    "probe_step_clamp.py",
+    usage=__doc__,
+)
+name, first = args["name"], int(args["first"])
+clamp, near, rate = float(args["clamp"]), float(args["near"]), float(args["rate"])
+dims = [int(d) for d in args["dims"].split(",")]
 job = rp.Job(
     "probe",
     "standard",
@@ -40,27 +54,31 @@ scenes = sample_scenes(env.sampler, 500, 20220101)
 indices = [i for i, s in enumerate(scenes) if math.hypot(s.goal.x, s.goal.y) < near]
 
 
-class Clamped:
+class Filtered:
     def reset(self, scene, info):
         policy.reset(scene, info)
+        self.steps, self.before = 0, None
 
     def __call__(self, obs, info):
         action = np.array(policy(obs, info), dtype=np.float32)
-        action[dims] = np.clip(action[dims], -clamp, clamp)
+        if first == 0 or self.steps < first:
+            action[dims] = np.clip(action[dims], -clamp, clamp)
+        if self.before is not None:
+            action[dims] = np.clip(action[dims], self.before[dims] - rate, self.before[dims] + rate)
+        self.steps, self.before = self.steps + 1, action.copy()
         return action
 
 
 started = time.time()
-records = evaluate(env, Clamped(), scenes, seed=0, progress=False, indices=indices)
+records = evaluate(env, Filtered(), scenes, seed=0, progress=False, indices=indices)
 counts = {k: sum(r["outcome"] == k for r in records) for k in ("success", "fall", "timeout", "collision")}
 print(
     json.dumps(
         {
-            "name": name,
-            "clamp": clamp,
-            "dims": dims,
+            **args,
             "n": len(records),
             **counts,
+            "fall_steps": sorted(r["steps"] for r in records if r["outcome"] == "fall"),
             "wall_s": round(time.time() - started, 1),
         }
     )
