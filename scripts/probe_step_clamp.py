@@ -2,13 +2,14 @@
 its actions filtered, at the study's 2 ms timestep.  Prints one JSON line of outcome counts and the
 double step each fall came at.
 
-    python scripts/probe_step_clamp.py name=mj_nav_300k_s0 clamp=0.5 dims=2,5   # each foot's turn at ±0.5
-    python scripts/probe_step_clamp.py name=mj_nav_300k_s0 rate=0.3 dims=0,1,2,3,4,5  # each value moves ≤ 0.3 a step
-    python scripts/probe_step_clamp.py name=mj_nav_300k_s0 clamp=0 first=1 dims=0,1,2,3,4,5  # first step in place
+    python scripts/probe_step_clamp.py name=mj_nav_start_s0 clamp=0.5 dims=2,5   # each foot's turn at ±0.5
+    python scripts/probe_step_clamp.py name=mj_nav_start_s0 rate=0.3 dims=0,1,2,3,4,5  # each value moves ≤ 0.3 a step
+    python scripts/probe_step_clamp.py name=mj_nav_start_s0 clamp=0 first=1 dims=0,1,2,3,4,5  # first step in place
 
 ``clamp=C``: the chosen action dimensions clamped to ±C of the step limits (1: unclamped), on the
 episode's first ``first`` double steps (0: on every one); ``rate=R``: each chosen dimension moves at
 most R from the double step before; ``near=D`` (m): the scenes probed (``near=inf``: all 500).
+The results page's probes ran on ``mj_nav_300k_s0`` … ``_s2``, in the zoo at commit 38b3734.
 """
 
 import json
@@ -29,7 +30,7 @@ from footsim.utils import parse_kv_args
 
 args = parse_kv_args(
     sys.argv[1:],
-    {"name": "mj_nav_300k_s0", "clamp": "1", "near": "0.5", "dims": "2,5", "rate": "inf", "first": "0"},
+    {"name": "mj_nav_start_s0", "clamp": "1", "near": "0.5", "dims": "2,5", "rate": "inf", "first": "0"},
     "probe_step_clamp.py",
     usage=__doc__,
 )
