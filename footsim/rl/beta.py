@@ -85,12 +85,12 @@ class BetaDistribution(Distribution):
         mean = alpha / (alpha + beta)
         if self.deterministic_action == "mean":
             return self._from_unit(mean)
-        # The spread is summed from α − 1 and β − 1, not as α + β − 2: in float32 α = 1 + 2⁻²³ and β = 1
-        # sum to 2 and would give a division by zero where the mode is the upper bound. Where both
-        # softplus terms underflow (head outputs below about -17), α = β = 1: the uniform density has
-        # no mode and the formula gives 0/0, so take its mean, the middle.
-        spread = (alpha - 1.0) + (beta - 1.0)
-        return self._from_unit(th.where(spread > 0, (alpha - 1.0) / spread, mean))
+        # Where α + β − 2 rounds to 0 in float32, either α = β = 1 (both softplus terms underflow, head
+        # outputs below about -17: the uniform density has no mode, take its mean, the middle) or one
+        # of them is 1 + 2⁻²³ and the other 1, where the mode is the bound on the larger one's side.
+        spread = alpha + beta - 2.0
+        edge = th.where(alpha > beta, th.ones_like(mean), th.where(beta > alpha, th.zeros_like(mean), mean))
+        return self._from_unit(th.where(spread > 0, (alpha - 1.0) / spread, edge))
 
     def mode(self) -> th.Tensor:
         """SB3's deterministic action: the mode, or the mean (``deterministic_action``)."""
