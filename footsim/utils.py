@@ -33,15 +33,8 @@ def atomic_save(save: Callable[[str], None], path: str | os.PathLike, suffix: st
 
 
 def atomic_write_text(path: str | os.PathLike, text: str) -> None:
-    """``text`` into ``path`` atomically (``atomic_save``), synced to disk before the move."""
-
-    def save(tmp: str) -> None:
-        with open(tmp, "w") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-
-    atomic_save(save, path)
+    """``text`` into ``path`` atomically, synced to disk before the move (:func:`atomic_write_texts`)."""
+    atomic_write_texts({path: text})
 
 
 def atomic_write_texts(files: Mapping[str | os.PathLike, str]) -> None:
