@@ -1,12 +1,15 @@
-"""Small I/O helpers shared by the command lines and the trainer: atomic file writes,
-``key=value`` argument parsing and the note on a command-line request not honoured as given."""
+"""Small helpers shared by the command lines, the configs and the trainer: atomic file writes,
+``key=value`` argument parsing, the check of a count setting and the note on a command-line request
+not honoured as given."""
 
 from __future__ import annotations
 
+import operator
 import os
 import tempfile
 from collections.abc import Callable, Mapping
 from pathlib import Path
+from typing import Any
 
 
 def _default_file_mode() -> int:
@@ -59,6 +62,20 @@ def atomic_write_texts(files: Mapping[str | os.PathLike, str]) -> None:
     finally:
         for tmp, _ in temps:
             Path(tmp).unlink(missing_ok=True)
+
+
+def check_count(name: str, value: Any, least: int = 0, below: tuple[str, int] | None = None) -> int:
+    """``value`` as an int if it is a whole count >= ``least`` (and < the bound ``below`` = (its name,
+    its value)); else a ValueError naming ``name``. A bool or 1.5 is a typo, not a count, which int()
+    would silently turn into one."""
+    try:
+        count = None if isinstance(value, bool) else operator.index(value)  # int and numpy integers
+    except TypeError:
+        count = None
+    if count is None or count < least or (below is not None and count >= below[1]):
+        bound = f"an integer >= {least}" if below is None else f"an integer in [{least}, {below[0]})"
+        raise ValueError(f"{name} must be {bound}, got {value!r}")
+    return count
 
 
 def parse_kv_args(argv: list[str], allowed: Mapping[str, object], command: str, usage: str | None = None) -> dict:

@@ -225,3 +225,20 @@ def test_bad_start_in_place_values_are_named():
     for value in (-1, 1.5, True, 100):
         with pytest.raises(ValueError, match="task.start_in_place"):
             NavTaskConfig(start_in_place=value)
+    with pytest.raises(ValueError, match=r"task.start_in_place must be an integer in \[0, task.max_steps\), got 5"):
+        NavTaskConfig(start_in_place=5, max_steps=5)  # the whole episode in place
+
+
+@pytest.mark.parametrize(
+    ("key", "value"),
+    [("max_steps", 0), ("max_steps", 2.5), ("max_steps", False), ("n_rays", 0), ("n_rays", 36.0), ("n_rays", "36")],
+)
+def test_count_settings_refuse_what_is_not_a_whole_count(key, value):
+    """A count that int() would silently truncate or accept (2.5 -> 2, True -> 1, 36.0) is named."""
+    with pytest.raises(ValueError, match=f"task.{key} must be an integer >= 1, got {value!r}"):
+        NavTaskConfig(**{key: value})
+
+
+def test_count_settings_accept_numpy_integers():
+    config = NavTaskConfig(max_steps=np.int64(7), start_in_place=np.int32(6), observe_history=np.int16(1))
+    assert (config.max_steps, config.start_in_place, config.observe_history) == (7, 6, 1)

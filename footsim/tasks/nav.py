@@ -31,6 +31,7 @@ from footsim.tasks.terms import (
     termination_table,
     termination_term,
 )
+from footsim.utils import check_count
 
 #: The thesis 5.5 reward without obstacles (conf/task/nav.yaml), and the 3D options "stability"
 #: (exp(-max trunk tilt / scale)) and "contact" (1 without an obstacle contact), weight 0 = off;
@@ -111,24 +112,10 @@ class NavTaskConfig:
             value = getattr(self, key)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"task.{key} must be a positive number, got {value!r}")
-        if int(self.max_steps) <= 0:
-            raise ValueError(f"task.max_steps must be > 0, got {self.max_steps!r}")
-        if int(self.n_rays) <= 0:
-            raise ValueError(f"task.n_rays must be > 0, got {self.n_rays!r}")
-        if (
-            isinstance(self.observe_history, bool)
-            or int(self.observe_history) != self.observe_history
-            or self.observe_history < 0
-        ):
-            raise ValueError(f"task.observe_history must be an integer >= 0, got {self.observe_history!r}")
-        if (
-            isinstance(self.start_in_place, bool)
-            or int(self.start_in_place) != self.start_in_place
-            or not 0 <= self.start_in_place < int(self.max_steps)
-        ):
-            raise ValueError(
-                f"task.start_in_place must be an integer in [0, task.max_steps), got {self.start_in_place!r}"
-            )
+        check_count("task.max_steps", self.max_steps, least=1)
+        check_count("task.n_rays", self.n_rays, least=1)
+        check_count("task.observe_history", self.observe_history)
+        check_count("task.start_in_place", self.start_in_place, below=("task.max_steps", int(self.max_steps)))
         if not 0.0 < self.fall_threshold < math.pi / 2:
             raise ValueError(f"task.fall_threshold must be in (0, pi/2) rad, got {self.fall_threshold!r}")
         if not (self.collision_ends_episode is None or isinstance(self.collision_ends_episode, bool)):

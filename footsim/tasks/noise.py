@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from footsim.geometry import Pose2D, wrap_angle
+from footsim.utils import check_count
 
 SIGMA_KEYS = ("sigma_x", "sigma_y", "sigma_theta", "bias_sigma_x", "bias_sigma_y", "bias_sigma_theta")
 
@@ -66,10 +67,7 @@ class NoiseModel:
             value = getattr(self, key)
             if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise ValueError(f"noise.{key} must be a number >= 0, got {value!r}")
-        k = self.delay_steps
-        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 0:
-            raise ValueError(f"noise.delay_steps must be an integer >= 0, got {k!r}")
-        self.delay_steps = int(k)
+        self.delay_steps = check_count("noise.delay_steps", self.delay_steps)
         self._history = deque(maxlen=self.delay_steps + 1)
         w = self.odometry_weight
         if isinstance(w, bool) or not (isinstance(w, (int, float)) and 0.0 <= w < 1.0):
