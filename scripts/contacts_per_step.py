@@ -42,7 +42,7 @@ def main(argv: list[str]) -> None:
     try:
         for index in chosen:
             obs, info = env.reset(seed=index, options={"scene": scenes[index]})
-            controller.reset(scenes[index], info)
+            controller.reset(scenes[index], info, seed=index)
             steps = ""
             while True:
                 obs, _, terminated, truncated, info = env.step(controller(obs, info))

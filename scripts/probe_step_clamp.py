@@ -56,8 +56,8 @@ indices = [i for i, s in enumerate(scenes) if math.hypot(s.goal.x, s.goal.y) < n
 
 
 class Filtered:
-    def reset(self, scene, info):
-        policy.reset(scene, info)
+    def reset(self, scene, info, seed):
+        policy.reset(scene, info, seed)
         self.steps, self.before = 0, None
 
     def __call__(self, obs, info):

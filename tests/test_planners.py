@@ -91,7 +91,7 @@ def test_velocity_controller_uses_the_walk_engine_rule():
     env = FootstepEnv()
     ctrl = VelocityController.from_env(env, {"smoothing": 1.0})
     obs, info = env.reset(seed=0, options={"scene": Scene(Pose2D(2.0, 0.0, 0.0))})
-    ctrl.reset(env.scene, info)
+    ctrl.reset(env.scene, info, seed=0)
     action = ctrl(obs, info)
     vx = min(2.0 * ctrl.params.translation_slow_down_factor, ctrl.params.max_vel_x)
     expected = ctrl.engine.footsteps_from_velocity(vx, 0.0, 0.0).as_array() / np.tile(LIMITS.as_array(), 2)

@@ -47,7 +47,7 @@ def bench_planners(
             times, first, complete, plans = [], [], 0, 0
             for i, scene in enumerate(scenes):
                 obs, info = env.reset(seed=i, options={"scene": scene})
-                ctrl.reset(scene, info)
+                ctrl.reset(scene, info, seed=i)
                 done = False
                 while not done:
                     obs, _, terminated, truncated, info = env.step(ctrl(obs, info))

@@ -614,7 +614,7 @@ class FootstepController:
         self.plans: list[FootstepPlan] = []
         self.statuses: dict[str, int] = {}
 
-    def reset(self, scene: Scene, info: dict) -> None:
+    def reset(self, scene: Scene, info: dict, seed: int) -> None:  # deterministic: the seed is unused
         self._reset_state()
         pose = Pose2D(*info["pose_estimate"])
         self.planner = FootstepPlanner(self.geometry, self.trunk_footprint, scene, self.params, (pose.x, pose.y))

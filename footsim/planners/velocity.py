@@ -161,7 +161,7 @@ class VelocityController:
         self.paths: list[np.ndarray] = []
 
     # -- Controller protocol ----------------------------------------------------------------
-    def reset(self, scene: Scene, info: dict) -> None:
+    def reset(self, scene: Scene, info: dict, seed: int) -> None:  # deterministic: the seed is unused
         self.reset_state()
         self.scene = scene
         p = self.params

@@ -40,9 +40,10 @@ OUTCOME_COLUMNS = ("success", "timeout", "fall", "collision", "sim_error")
 
 
 class Controller(Protocol):
-    """Anything that turns an observation (and the env's info) into a 6-D action."""
+    """Anything that turns an observation (and the env's info) into a 6-D action; :meth:`reset`
+    starts an episode (``seed`` is the episode's, for a controller that samples)."""
 
-    def reset(self, scene: Scene, info: dict) -> None: ...
+    def reset(self, scene: Scene, info: dict, seed: int) -> None: ...
 
     def __call__(self, obs: np.ndarray, info: dict) -> np.ndarray: ...
 
@@ -53,10 +54,7 @@ class PolicyController:
     def __init__(self, policy: Callable, deterministic: bool = True):
         self.policy, self.deterministic = policy, deterministic
 
-    def reset(self, scene: Scene, info: dict) -> None:
-        pass
-
-    def begin_episode(self, seed: int) -> None:
+    def reset(self, scene: Scene, info: dict, seed: int) -> None:
         """A stochastic policy samples from torch's generator seeded with the episode's seed, so an
         episode's actions do not depend on the episodes before it (shards match a single process)."""
         if not self.deterministic:
@@ -84,9 +82,7 @@ class EpisodeRecord:
 
     def begin(self) -> None:
         self.obs, self.info = self.env.reset(seed=self.seed, options={"scene": self.scene})
-        if isinstance(self.controller, PolicyController):
-            self.controller.begin_episode(self.seed)
-        self.controller.reset(self.scene, self.info)
+        self.controller.reset(self.scene, self.info, self.seed)
 
     def step(self) -> dict:
         obs, reward, terminated, truncated, info = self.env.step(self.controller(self.obs, self.info))
