@@ -180,6 +180,26 @@ def test_failed_add_leaves_the_zoo_unchanged(tiny_zoo, tmp_path, monkeypatch):
     assert after == before
 
 
+@pytest.mark.slow
+@pytest.mark.xdist_group("tiny_runs")
+def test_evaluate_replaces_the_summary_with_what_the_code_makes_of_the_policy(tiny_zoo, tmp_path, capsys):
+    """``footsim-zoo evaluate`` re-runs the entry's evaluation: on the 5 scenes its check episodes
+    were recorded on, the new summary's outcome shares are those episodes' (an independent record,
+    written by ``add``), and the entry still verifies (its provenance holds the new digest)."""
+    root, _ = tiny_zoo
+    copy = _stale_copy(root, tmp_path)
+    summary = zoo.reevaluate("tiny", copy, n_scenes=5)
+    recorded = _rows(copy / "tiny" / "check_episodes.csv")
+    for outcome in ("success", "fall", "timeout", "collision"):
+        assert summary[outcome] == pytest.approx(sum(r["outcome"] == outcome for r in recorded) / 5)
+    assert json.loads((copy / "tiny" / "summary.json").read_text()) == summary
+    assert zoo.load_index(copy)["entries"]["tiny"]["success"] == summary["success"]
+    assert zoo.verify("tiny", copy) == []
+    assert not [p for p in copy.iterdir() if p.name.startswith(".")]  # no temporaries left
+    with pytest.raises(SystemExit, match="give one or more NAMEs"):
+        zoo_main(["evaluate", f"zoo={copy}"])
+
+
 def _stale_copy(root: Path, tmp_path: Path) -> Path:
     copy = tmp_path / "zoo"
     shutil.copytree(root, copy)

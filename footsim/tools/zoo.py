@@ -1,4 +1,5 @@
-"""``footsim-zoo list | show NAME | add RUN_DIR name=NAME [...] | remove NAME | check [NAME ...]``: the model zoo
+"""``footsim-zoo list | show NAME | add RUN_DIR name=NAME [...] | remove NAME | check [NAME ...] |
+evaluate NAME [NAME ...]``: the model zoo
 (:mod:`footsim.zoo`).  ``zoo=DIR`` (or ``$FOOTSIM_ZOO``) works on another zoo directory.
 
 * ``list``: one line per entry (condition, seed, backend, task, noise, steps, recorded success).
@@ -9,6 +10,8 @@
 * ``remove NAME [keep_children=true]``: take an entry out (refused while another entry records it
   as its parent, unless keep_children=true: a study plan's training stage).
 * ``check [NAME ...]``: file digests and config composition of the entries (all by default); exit 1 on a problem.
+* ``evaluate NAME [NAME ...]``: run each entry's own evaluation (the standard scenes of its task,
+  under its noise) again with this footsim and replace its recorded summary and success.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ from footsim import zoo
 USAGE = (
     "usage: footsim-zoo list | show NAME | add RUN_DIR name=NAME [condition=C] [description=TEXT] "
     "[commit=SHA|CHECKOUT] [check_scenes=20] [force=true [parent_name=P]] | remove NAME [keep_children=true] "
-    "| check [NAME ...]   (any: zoo=DIR)"
+    "| check [NAME ...] | evaluate NAME [NAME ...]   (any: zoo=DIR)"
 )
 
 
@@ -147,6 +150,12 @@ def main(argv: list[str] | None = None) -> None:
             print(f"removed {positional[0]} from {root}; zoo size: {zoo.total_size(root) / 1e6:.1f} MB")
         elif command == "check":
             raise SystemExit(_check(positional, root))
+        elif command == "evaluate":
+            if not positional or options:
+                raise SystemExit(f"footsim-zoo evaluate: give one or more NAMEs (no key=value)\n{USAGE}")
+            for name in positional:
+                summary = zoo.reevaluate(name, root)
+                print(f"{name}: success {summary['success']:.3f} on {summary['episodes']} scenes (recorded)")
         else:
             raise SystemExit(f"footsim-zoo: unknown command {command!r}\n{USAGE}")
     except zoo.ZooError as err:

@@ -557,6 +557,37 @@ def add(
     return row
 
 
+def reevaluate(name: str, root: Path | None = None, n_scenes: int | None = None) -> dict:
+    """Run the entry's own evaluation again with this footsim (its config's ``eval`` section: the
+    standard scenes of its task, under its noise) and replace ``summary.json``, its digest in the
+    provenance and the index's success: the recorded summary then says what the code as it is now
+    makes of the policy.  The provenance records the commit that evaluated it (``summary_commit``).
+    ``n_scenes`` overrides the scene count (a test's shortcut; the recorded summary takes 500)."""
+    from omegaconf import OmegaConf
+
+    from footsim.rl.common import load_run_config, under_noise
+    from footsim.rl.evaluate import evaluate_run
+    from footsim.utils import atomic_write_texts
+
+    root = (root or zoo_dir()).resolve()
+    path = entry_dir(name, root)
+    cfg = load_run_config(path)
+    asked = {"plot": False, **({} if n_scenes is None else {"n_scenes": n_scenes})}
+    cfg_eval = OmegaConf.merge(cfg.eval, asked)
+    assert isinstance(cfg_eval, DictConfig)  # a mapping merged over a mapping
+    with tempfile.TemporaryDirectory(dir=root, prefix=f".{name}.evaluating-") as out:
+        evaluate_run(under_noise(cfg, cfg_eval.get("noise")), path, Path(out), cfg_eval)
+        text = (Path(out) / SUMMARY_FILE).read_text()
+    summary = json.loads(text)
+    prov = json.loads((path / PROVENANCE_FILE).read_text())
+    prov["files"][SUMMARY_FILE] = hashlib.sha256(text.encode()).hexdigest()
+    prov["summary_commit"] = commit_of(None)
+    # both files synced before either replaces its old one: a crash leaves the pair consistent
+    atomic_write_texts({path / SUMMARY_FILE: text, path / PROVENANCE_FILE: json.dumps(prov, indent=2) + "\n"})
+    update_index(root, lambda index: index["entries"][name].__setitem__("success", summary.get("success")))
+    return summary
+
+
 def children(name: str, root: Path | None = None) -> list[str]:
     """The entries that record ``name`` as the zoo entry they were trained from."""
     ref = f"zoo:{name}"
