@@ -581,7 +581,10 @@ def reevaluate(name: str, root: Path | None = None, n_scenes: int | None = None)
     summary = json.loads(text)
     prov = json.loads((path / PROVENANCE_FILE).read_text())
     prov["files"][SUMMARY_FILE] = hashlib.sha256(text.encode()).hexdigest()
-    prov["summary_commit"] = commit_of(None)
+    prov["summary_commit"] = {
+        **commit_of(None),
+        "source": "the footsim checkout that evaluated it (footsim-zoo evaluate)",
+    }
     # both files synced before either replaces its old one: a crash leaves the pair consistent
     atomic_write_texts({path / SUMMARY_FILE: text, path / PROVENANCE_FILE: json.dumps(prov, indent=2) + "\n"})
     update_index(root, lambda index: index["entries"][name].__setitem__("success", summary.get("success")))
