@@ -585,7 +585,7 @@ def reevaluate(name: str, root: Path | None = None, n_scenes: int | None = None)
         **commit_of(None),
         "source": "the footsim checkout that evaluated it (footsim-zoo evaluate)",
     }
-    # both files synced before either replaces its old one: a crash leaves the pair consistent
+    # both texts synced to temporary files before either replaces its file: a failed write changes neither
     atomic_write_texts({path / SUMMARY_FILE: text, path / PROVENANCE_FILE: json.dumps(prov, indent=2) + "\n"})
     update_index(root, lambda index: index["entries"][name].__setitem__("success", summary.get("success")))
     return summary
