@@ -259,7 +259,7 @@ def test_evaluation_counts_obstacle_contacts():
     from footsim.rl.evaluate import run_episode, summarize
 
     class Forward:
-        def reset(self, scene, info):
+        def reset(self, scene, info, seed):
             pass
 
         def __call__(self, obs, info):

@@ -25,7 +25,7 @@ SMALL = [320, 240]
 class Walk:
     """A fixed forward-and-turn double step (no policy needed)."""
 
-    def reset(self, scene, info) -> None:
+    def reset(self, scene, info, seed) -> None:
         pass
 
     def __call__(self, obs, info) -> np.ndarray:
