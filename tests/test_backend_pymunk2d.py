@@ -13,6 +13,7 @@ import pytest
 from footsim.backends.pymunk2d import Pymunk2DBackend, box_hits_circles
 from footsim.config import build_robot, build_walk, load_preset
 from footsim.geometry import Pose2D, mean_pose
+from footsim.robots.spec import RobotSpec
 from footsim.scene import Obstacle, Scene
 from footsim.tasks import nav
 from footsim.tasks.scenes import SceneSampler
@@ -73,6 +74,25 @@ def test_hand_computed_box_circle_cases():
     assert not box_hits_circles(0, 0, 0, 0.1, 0.05, [])
 
 
+@pytest.mark.parametrize(("radius", "upper_body_hits"), [(0.09, True), (0.08, False)])
+def test_upper_body_check_reaches_the_forearms(radius, upper_body_hits):
+    # an obstacle ahead of the standing robot, its edge 0.16 m (0.17 m) ahead of the feet's mean: the
+    # upper body's box reaches 0.045 + 0.119 = 0.164 m ahead, the feet 0.077 m and the torso 0.075 m
+    scene = Scene(Pose2D(2.0, 0.0, 0.0), obstacles=(Obstacle(0.25, 0.0, radius),))
+    limits = _make_backend().robot.step_limits
+    in_place = DoubleStep.from_action(np.zeros(6), limits)
+    for collision_model, expected in (("footprint", False), ("upper_body", upper_body_hits)):
+        backend = _make_backend(collision_model=collision_model)
+        backend.reset(scene, np.random.default_rng(0))
+        assert backend.execute(in_place).collided is expected, collision_model
+        # the ball in the obstacle's place stays below the arms: neither check touches it
+        backend.reset(Scene(Pose2D(2.0, 0.0, 0.0), ball=Obstacle(0.25, 0.0, radius)), np.random.default_rng(0))
+        assert backend.execute(in_place).collided is False, collision_model
+    flat = RobotSpec("flat", limits)  # a planar spec without the upper body's figures
+    with pytest.raises(ValueError, match="collision_model=upper_body: robot 'flat' has no upper_body_footprint"):
+        Pymunk2DBackend(flat, build_walk(load_preset("walk", "pymunk")), collision_model="upper_body")
+
+
 def _make_backend(**options) -> Pymunk2DBackend:
     return Pymunk2DBackend(
         build_robot(load_preset("robot", "wolfgang")), build_walk(load_preset("walk", "pymunk")), **options
@@ -82,9 +102,7 @@ def _make_backend(**options) -> Pymunk2DBackend:
 def _pymunk_double_step_collides(backend: Pymunk2DBackend, before, after_first, after_second) -> bool:
     """The six pymunk shape queries of a double step (the backend's original narrow phase)."""
     space = backend.space
-    foot, trunk = [s for s in space.shapes if isinstance(s, pymunk.Poly)]
-    if foot.area > trunk.area:
-        foot, trunk = trunk, foot
+    foot, trunk, *upper = sorted((s for s in space.shapes if isinstance(s, pymunk.Poly)), key=lambda s: s.area)
 
     def hits(shape, pose):
         shape.body.position = (pose.x, pose.y)
@@ -100,11 +118,13 @@ def _pymunk_double_step_collides(backend: Pymunk2DBackend, before, after_first, 
         (foot, after_second.left),
         (trunk, after_second.nav_pose),
     ]
+    checks += [(shape, pose) for shape in upper for pose in (after_first.nav_pose, after_second.nav_pose)]
     return any(hits(shape, pose) for shape, pose in checks)
 
 
-def test_backend_collisions_match_pymunk_shape_queries():
-    backend = _make_backend()
+@pytest.mark.parametrize("collision_model", ["footprint", "upper_body"])
+def test_backend_collisions_match_pymunk_shape_queries(collision_model):
+    backend = _make_backend(collision_model=collision_model)
     rng = np.random.default_rng(1)
     sampler = SceneSampler(obstacles=True, obstacle_offset_sigma=0.4, obstacle_radius_max=0.4)
     outcomes = []

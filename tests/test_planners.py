@@ -108,11 +108,19 @@ def _rect_hits_circle_sampled(pose: Pose2D, half_l, half_w, o: Obstacle) -> bool
     return False
 
 
+UPPER_BODY = (0.238, 0.283, 0.045)  # Wolfgang's box over torso, head and arms (the 2D collision_model=upper_body)
+
+
+@pytest.mark.parametrize("upper_body", [None, UPPER_BODY], ids=["torso", "upper_body"])
 @pytest.mark.parametrize("seed", [3, 8])
-def test_footstep_plan_within_limits_and_clear_of_obstacles(seed):
+def test_footstep_plan_within_limits_and_clear_of_obstacles(seed, upper_body):
     scene = sample_scenes(SceneSampler(obstacles=True), 1, seed=seed)[0]
     planner = FootstepPlanner(
-        GEOMETRY, TRUNK, scene, FootstepParams(expansion_budget=None, time_budget_s=2.0, epsilons=(2.0,))
+        GEOMETRY,
+        TRUNK,
+        scene,
+        FootstepParams(expansion_budget=None, time_budget_s=2.0, epsilons=(2.0,)),
+        upper_body=upper_body,
     )
     feet = GEOMETRY.initial_feet()
     plan = planner.plan(feet.left, feet.right)
@@ -135,6 +143,10 @@ def test_footstep_plan_within_limits_and_clear_of_obstacles(seed):
             assert not _rect_hits_circle_sampled(landed, 0.077, 0.053, o)
             assert not _rect_hits_circle_sampled(state.nav_pose, 0.075, 0.075, o)
             assert not _rect_hits_circle_sampled(mid, 0.077, 0.053, o)
+        if upper_body is not None:  # the upper body's box, against the obstacles (the ball stays below the arms)
+            length, width, offset = upper_body
+            centre = state.nav_pose.compose(Pose2D(offset, 0.0, 0.0))
+            assert not any(_rect_hits_circle_sampled(centre, 0.5 * length, 0.5 * width, o) for o in scene.obstacles)
     final = state.nav_pose
     assert final.distance_to(scene.goal) < 1e-6 and abs(final.theta - scene.goal.theta) < 1e-6
 
@@ -200,6 +212,27 @@ def test_baselines_reach_simple_goals(name):
     controller = make_controller(env, {"name": name})
     records = evaluate(env, controller, SIMPLE_SCENES, progress=False)
     assert [r["outcome"] for r in records] == ["success"] * len(SIMPLE_SCENES), records
+
+
+def test_footstep_baseline_plans_against_the_envs_trunk_box():
+    """With the 2D collision_model=upper_body the baseline plans against the upper body's box too:
+    on scenes where the plans against the torso box touch an obstacle with it, its own do not."""
+    env = FootstepEnv(backend={"name": "pymunk", "collision_model": "upper_body"}, task="nav_obstacles")
+    own = make_controller(env, {"name": "footstep"})
+    assert own.upper_body == pytest.approx(UPPER_BODY)
+    torso_only = make_controller(FootstepEnv(task="nav_obstacles"), {"name": "footstep"})
+    scenes = sample_scenes(SceneSampler(obstacles=True), 40, seed=5)
+    torso_planned = [r["outcome"] for r in evaluate(env, torso_only, scenes, progress=False)]
+    touched = [k for k, outcome in enumerate(torso_planned) if outcome == "collision"]
+    assert len(touched) >= 5, "too few scenes tell the two boxes apart"
+    for k in touched:
+        obs, info = env.reset(seed=k, options={"scene": scenes[k]})
+        own.reset(scenes[k], info, seed=k)
+        while True:  # a step the planner chose (not its stand-still fallback once it gave up) is clear
+            obs, _, terminated, truncated, info = env.step(own(obs, info))
+            assert info["outcome"] != "collision" or own.status not in ("ok", "partial"), (k, own.status)
+            if terminated or truncated:
+                break
 
 
 def _ring_scene() -> Scene:

@@ -511,3 +511,64 @@ def test_missing_mujoco_names_the_extra(monkeypatch, spec):
     monkeypatch.setattr(builtins, "__import__", no_mujoco)
     with pytest.raises(ImportError, match=r"pip install 'footsim\[mujoco\]'"):
         mjcf.build_mjcf(spec)
+
+
+# ---- planar footprints ----------------------------------------------------------------------
+
+
+def _support(model, data, geom: int, direction: np.ndarray) -> float:
+    """max over geom ``geom``'s collision shape of ``direction · p`` (world frame; MuJoCo's own
+    placement of the geom, closed form per shape type)."""
+    rotation, centre = data.geom_xmat[geom].reshape(3, 3), data.geom_xpos[geom]
+    local, size, kind = rotation.T @ direction, model.geom_size[geom], model.geom_type[geom]
+    if kind == mujoco.mjtGeom.mjGEOM_BOX:
+        return float(centre @ direction + np.abs(local) @ size)
+    if kind == mujoco.mjtGeom.mjGEOM_SPHERE:
+        return float(centre @ direction + size[0])
+    if kind == mujoco.mjtGeom.mjGEOM_CAPSULE:
+        return float(centre @ direction + abs(local[2]) * size[1] + size[0])
+    assert kind == mujoco.mjtGeom.mjGEOM_CYLINDER, f"geom {geom}: shape type {kind}"
+    return float(centre @ direction + abs(local[2]) * size[1] + size[0] * math.hypot(local[0], local[1]))
+
+
+def test_upper_body_footprint_bounds_the_standing_robots_torso_head_and_arms():
+    """The robot's upper_body_footprint (the 2D backend's collision_model=upper_body), placed at the
+    feet's mean pose, bounds the torso, head and arms of the MuJoCo robot standing at walk-ready to
+    5 mm on each side."""
+    from footsim.env import FootstepEnv
+    from footsim.geometry import Pose2D, mean_pose
+    from footsim.scene import Scene
+
+    env = FootstepEnv(backend="mujoco", task="nav", robot="wolfgang")
+    try:
+        env.reset(seed=0, options={"scene": Scene(Pose2D(1.0, 0.0, 0.0))})
+        model, data = env.unwrapped.backend.sim.mj_model_data()
+
+        def sole(name):
+            site = model.site(name).id
+            heading = math.atan2(data.site_xmat[site][3], data.site_xmat[site][0])
+            return Pose2D(data.site_xpos[site][0], data.site_xpos[site][1], heading)
+
+        nav = mean_pose(sole("l_sole"), sole("r_sole"))
+        ahead = np.array([math.cos(nav.theta), math.sin(nav.theta), 0.0])
+        left = np.array([-math.sin(nav.theta), math.cos(nav.theta), 0.0])
+        upper = [
+            g
+            for g in range(model.ngeom)
+            if model.body(model.geom_bodyid[g]).name in ("torso", "neck", "head")
+            or model.body(model.geom_bodyid[g]).name.endswith(("shoulder", "upper_arm", "lower_arm"))
+        ]
+        assert len(upper) >= 8
+        origin = np.array([nav.x, nav.y, 0.0])
+        front = max(_support(model, data, g, ahead) for g in upper) - origin @ ahead
+        back = -max(_support(model, data, g, -ahead) for g in upper) + origin @ ahead
+        side_left = max(_support(model, data, g, left) for g in upper) - origin @ left
+        side_right = -max(_support(model, data, g, -left) for g in upper) + origin @ left
+    finally:
+        env.close()
+    length, width, offset = wolfgang().upper_body_footprint
+    assert front == pytest.approx(offset + length / 2, abs=0.005)  # the forearms, 0.164 m ahead
+    assert back == pytest.approx(offset - length / 2, abs=0.005)  # the torso's back, 0.074 m behind
+    assert side_left == pytest.approx(width / 2, abs=0.005)  # the forearms, 0.142 m to each side
+    assert side_right == pytest.approx(-width / 2, abs=0.005)
+    assert wolfgang().torso_footprint == (0.15, 0.15)  # FACTS' torso collision box, the default check's

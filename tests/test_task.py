@@ -40,6 +40,17 @@ def test_orientation_clause_and_obstacle_term_exclude_ball():
     negative = NavTaskConfig(obstacles=True, reward={"obstacle": {"weight": 1.0, "params": {"epsilon": -0.1}}})
     with pytest.raises(ValueError, match=r"task\.reward\.obstacle\.params\.epsilon must be >= 0, got -0\.1"):
         nav.reward_terms(Pose2D(0, 0, math.pi), scene, np.zeros(6), np.zeros(6), config=negative)
+    # measured from a 0.2 m circle around the robot: d_obs = 0.5 - 0.2 = 0.3, exp(-0.0015 / 0.3²)
+    outline = NavTaskConfig(obstacles=True, reward={"obstacle": {"weight": 1.0, "params": {"radius": 0.2}}})
+    from_circle = nav.reward_terms(Pose2D(0, 0, math.pi), scene, np.zeros(6), np.zeros(6), config=outline)
+    assert from_circle == pytest.approx({"obstacle": math.exp(-0.0015 / 0.09)})
+    # an obstacle inside that circle: the term's floor, exp(-0.0015 / (1e-6)²) = 0
+    touching = Scene(Pose2D(0.08, 0, 0), obstacles=(Obstacle(0.0, 0.6, 0.45),))
+    assert nav.reward_terms(Pose2D(0, 0, 0), touching, np.zeros(6), np.zeros(6), config=outline) == {"obstacle": 0.0}
+    for bad in (-0.1, math.nan):
+        wrong = NavTaskConfig(obstacles=True, reward={"obstacle": {"weight": 1.0, "params": {"radius": bad}}})
+        with pytest.raises(ValueError, match=r"task\.reward\.obstacle\.params\.radius must be a number >= 0"):
+            nav.reward_terms(Pose2D(0, 0, math.pi), scene, np.zeros(6), np.zeros(6), config=wrong)
     far = nav.reward_terms(Pose2D(0, 0, math.pi), Scene(Pose2D(2, 0, 0)), np.zeros(6), np.zeros(6))
     assert far["orientation"] == pytest.approx(math.exp(-math.pi))
 

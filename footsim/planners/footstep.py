@@ -10,7 +10,8 @@
   ``lattice_theta_bins`` headings × side), as in hybrid A*.
 * **Collision checks**: like the 2D backend — the flying foot's plate at mid-swing and at
   put-down, and the trunk box at the navigation pose after put-down — rectangles against the
-  scene's circles (ball included), grown by ``safety_margin``.
+  scene's circles (ball included), grown by ``safety_margin``; optionally the upper body's box
+  against the obstacles (``upper_body``, the 2D backend's ``collision_model=upper_body``).
 * **Heuristic**: a 2D Dijkstra distance map from the goal over the costmap (obstacles inflated by
   ``heuristic_clearance``) divided by the longest footstep (expected steps), plus the turn left
   to the goal's heading divided by the largest turn.
@@ -196,7 +197,11 @@ class FootstepPlanner:
         scene: Scene,
         params: FootstepParams = FootstepParams(),
         start_xy: tuple[float, float] = (0.0, 0.0),
+        upper_body: tuple[float, float, float] | None = None,
     ):
+        """``upper_body``: the box over torso, head and arms (length, width, its centre's offset
+        ahead of the navigation pose) checked against the obstacles (not the ball, which stays below
+        the arms) besides the trunk box, as the 2D backend's ``collision_model=upper_body`` does."""
         self.geometry = geometry
         self.params = p = params
         self.scene = scene
@@ -204,6 +209,12 @@ class FootstepPlanner:
         self.limits = geometry.limits
         self.foot_half = (0.5 * geometry.foot_length, 0.5 * geometry.foot_width)
         self.trunk_half = (0.5 * trunk_footprint[0], 0.5 * trunk_footprint[1])
+        self.upper_body = upper_body
+        # half length, half width and offset of the upper body's box (0, 0, 0: none)
+        self._upper = (
+            (0.0, 0.0, 0.0) if upper_body is None else (0.5 * upper_body[0], 0.5 * upper_body[1], upper_body[2])
+        )
+        self._n_tall = len(scene.obstacles)  # scene.all_obstacles lists them first, the ball last
         obstacles = scene.all_obstacles
         self.rects = _Rects(obstacles, p.safety_margin)
         self.rects_exact = _Rects(obstacles, 0.0)
@@ -212,7 +223,7 @@ class FootstepPlanner:
         # the support foot, costs.
         self.transitions: dict[Side, tuple[list[Footstep], np.ndarray, np.ndarray]] = {}
         # half extents of the rectangles checked per expansion: the foot (landing, mid-swing), the trunk
-        self._extents = np.array([*self.foot_half, *self.trunk_half], dtype=float)
+        self._extents = np.array([*self.foot_half, *self.trunk_half, *self._upper, self._n_tall], dtype=float)
         lim = self.limits
         self.stable = stable = (
             None if p.stable_region is None else StableRegion.load(p.stable_region, p.stable_max_fall_rate)
@@ -300,9 +311,21 @@ class FootstepPlanner:
         self._weighted_astar(self.goal_feet.left, self.goal_feet.right, 1.0, 0.0, math.inf, 1)
 
     # -- geometry helpers -----------------------------------------------------------------------
+    def _upper_body_hits(self, rects: _Rects, navs: list[Pose2D]) -> bool:
+        """Does the upper body's box (if any) at one of the navigation poses ``navs`` touch an obstacle?"""
+        hl, hw, offset = self._upper
+        if hl == 0.0:
+            return False
+        centres = [nav.compose(Pose2D(offset, 0.0, 0.0)) for nav in navs]
+        tall = rects.circles[: self._n_tall]
+        xs, ys, ts = (np.array([centre[k] for centre in centres]) for k in range(3))
+        return bool(kernels.rects_hit(tall, xs, ys, ts, np.full(len(navs), hl), np.full(len(navs), hw)).any())
+
     def _stance_collides(self, left: Pose2D, right: Pose2D, exact: bool = False) -> bool:
         rects = self.rects_exact if exact else self.rects
         nav = mean_pose(left, right)
+        if self._upper_body_hits(rects, [nav]):
+            return True
         xs = np.array([left.x, right.x, nav.x])
         ys = np.array([left.y, right.y, nav.y])
         ts = np.array([left.theta, right.theta, nav.theta])
@@ -345,7 +368,7 @@ class FootstepPlanner:
         hl = np.array([fh[0], fh[0], th[0], fh[0], fh[0]])
         hw = np.array([fh[1], fh[1], th[1], fh[1], fh[1]])
         rects = self.rects_goal if self._active_rects is self.rects else self._active_rects
-        if rects.hits(xs, ys, ts, hl, hw).any():
+        if rects.hits(xs, ys, ts, hl, hw).any() or self._upper_body_hits(rects, [nav_r]):
             return None
         p = self.params
         cost = (
@@ -440,7 +463,7 @@ class FootstepPlanner:
                 ts,
                 [self.foot_half[0]] * 2 + [self.trunk_half[0]],
                 [self.foot_half[1]] * 2 + [self.trunk_half[1]],
-            ).any():
+            ).any() or self._upper_body_hits(self.rects, [nav]):
                 return None
             feet[side] = landed
             steps.append((side, done))
@@ -588,10 +611,12 @@ class FootstepController:
         geometry: FootstepGeometry,
         trunk_footprint: tuple[float, float],
         params: FootstepParams = FootstepParams(),
+        upper_body: tuple[float, float, float] | None = None,
     ):
         self.geometry = geometry
         length, width = trunk_footprint
         self.trunk_footprint = (length, width)
+        self.upper_body = upper_body  # FootstepPlanner's upper_body
         self.params = params
         self.limits = geometry.limits
         self.planner: FootstepPlanner | None = None
@@ -604,7 +629,8 @@ class FootstepController:
         elif not isinstance(params, FootstepParams):
             params = FootstepParams.from_mapping(params)
         geometry = FootstepGeometry(env.limits, env.robot.foot_length, env.robot.foot_width, env.walk.foot_distance)
-        return cls(geometry, env.robot.torso_footprint, params)
+        # plan against what the env's collision check tests (the 2D backend's upper_body_box, if any)
+        return cls(geometry, env.robot.torso_footprint, params, getattr(env.backend, "upper_body_box", None))
 
     def _reset_state(self) -> None:
         self.last_left_step: Footstep | None = None
@@ -617,7 +643,9 @@ class FootstepController:
     def reset(self, scene: Scene, info: dict, seed: int) -> None:  # deterministic: the seed is unused
         self._reset_state()
         pose = Pose2D(*info["pose_estimate"])
-        self.planner = FootstepPlanner(self.geometry, self.trunk_footprint, scene, self.params, (pose.x, pose.y))
+        self.planner = FootstepPlanner(
+            self.geometry, self.trunk_footprint, scene, self.params, (pose.x, pose.y), self.upper_body
+        )
 
     def __call__(self, obs, info: dict) -> np.ndarray:
         nav = Pose2D(*info["pose_estimate"])

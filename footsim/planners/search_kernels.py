@@ -221,6 +221,8 @@ def _expand(
     nbins = st[5]
     flying_bit = 1 - link[n, 0]
     foot_l, foot_w, trunk_l, trunk_w = feet[0], feet[1], feet[2], feet[3]
+    upper_l, upper_w, upper_off = feet[4], feet[5], feet[6]  # the upper body's box (upper_l 0: none)
+    tall = circles[: int(feet[7])]  # the circles that reach the upper body (the obstacles, not the ball)
     c, s = math.cos(t), math.sin(t)
     for j in range(k):
         rx, ry, rt = rels[j, 0], rels[j, 1], rels[j, 2]
@@ -235,6 +237,10 @@ def _expand(
             continue
         if rect_hits(circles, nav_x, nav_y, nav_t, trunk_l, trunk_w):
             continue
+        if upper_l > 0.0:
+            ux, uy = nav_x + upper_off * math.cos(nav_t), nav_y + upper_off * math.sin(nav_t)
+            if rect_hits(tall, ux, uy, nav_t, upper_l, upper_w):
+                continue
         h = heuristic(hp, dist, direction, turn_from, nav_x, nav_y, nav_t)
         gc = g + costs[j]
         if not (math.isfinite(h) and gc + h < bound):

@@ -354,6 +354,9 @@ class RobotSpec:
     foot_length: float = 0.154  # sole plate, x [m]
     foot_width: float = 0.106  # sole plate, y [m]
     torso_footprint: tuple[float, float] = (0.15, 0.15)  # planar collision box of the trunk [m]
+    # The planar box bounding the upper body with the arms at walk-ready: length, width [m] and its
+    # centre's offset ahead of the feet's mean pose [m] (the 2D collision_model=upper_body); None: unknown.
+    upper_body_footprint: tuple[float, float, float] | None = None
     foot_thickness: float = 0.0035  # sole plate, z [m]
     base_link: str = "torso"
     links: tuple[Link, ...] = ()
@@ -368,6 +371,14 @@ class RobotSpec:
             raise ValueError("RobotSpec.name must be a non-empty string")
         for attr in ("foot_length", "foot_width", "foot_thickness"):
             _positive(getattr(self, attr), f"RobotSpec.{attr}")
+        for value in self.torso_footprint:
+            _positive(value, "RobotSpec.torso_footprint entries")
+        if self.upper_body_footprint is not None:
+            length, width, offset = self.upper_body_footprint
+            _positive(length, "RobotSpec.upper_body_footprint length")
+            _positive(width, "RobotSpec.upper_body_footprint width")
+            if not math.isfinite(offset):
+                raise ValueError(f"RobotSpec.upper_body_footprint offset must be finite, got {offset!r}")
         object.__setattr__(self, "links", tuple(self.links))
         object.__setattr__(self, "joints", tuple(self.joints))
         object.__setattr__(

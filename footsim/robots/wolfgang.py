@@ -138,6 +138,11 @@ WALK_READY_TRUNK_HEIGHT, WALK_READY_FOOT_DISTANCE = 0.3948, 0.1799
 STEP_LIMITS = StepLimits(0.156, 0.103, 0.764)
 FOOT_LENGTH, FOOT_WIDTH = 0.154, 0.106  # sole plate [m]
 TORSO_FOOTPRINT = (0.15, 0.15)  # planar collision box of the trunk [m]
+# The upper body's planar bounding box (torso, head and the arms at walk-ready: the forearms reach
+# 0.142 m to each side and 0.164 m ahead, the torso's back 0.074 m behind), length x width [m] and
+# its centre's offset ahead of the feet's mean pose, measured on the MuJoCo model standing
+# (tests/test_robot_models.py checks it to 5 mm).
+UPPER_BODY_FOOTPRINT = (0.238, 0.283, 0.045)
 
 GREY, DARK, LIGHT = (0.55, 0.57, 0.58, 1.0), (0.28, 0.30, 0.32, 1.0), (0.75, 0.75, 0.72, 1.0)
 
@@ -254,6 +259,7 @@ def wolfgang(torso_extra_mass: float = 0.0) -> RobotSpec:
         foot_width=FOOT_WIDTH,
         foot_thickness=PLATE_THICKNESS,
         torso_footprint=TORSO_FOOTPRINT,
+        upper_body_footprint=UPPER_BODY_FOOTPRINT,
         base_link="torso",
         links=tuple(links),
         joints=tuple(joints),

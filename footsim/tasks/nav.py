@@ -274,20 +274,25 @@ def orientation(step: StepContext) -> float:
 
 
 @reward_term()
-def obstacle(step: StepContext, epsilon: float = 0.0015) -> float:
+def obstacle(step: StepContext, epsilon: float = 0.0015, radius: float = 0.0) -> float:
     """exp(-epsilon / d_obs²) of the distance to the nearest obstacle edge (1 without obstacles);
     the thesis's epsilon is 0.0015 m² (0.86 at 0.1 m, 0.55 at 0.05 m).
 
+    ``d_obs`` is measured from the robot centre (the thesis's), or with ``radius`` > 0 from a
+    circle of that radius around it: the robot's planar outline rather than its centre, e.g. the
+    scene sampler's 0.2 m, which the 3D robot's forearms reach at walk-ready (inside it: 0).
     The ball is excluded (it would create a local minimum before the goal)."""
     if not epsilon >= 0.0:
         raise ValueError(f"task.reward.obstacle.params.epsilon must be >= 0, got {epsilon!r}")
+    if not (radius >= 0.0 and math.isfinite(radius)):
+        raise ValueError(f"task.reward.obstacle.params.radius must be a number >= 0 [m], got {radius!r}")
     scene = step.scene
     if not scene.obstacles:
         return 1.0
     d_obs = _nearest_circle_distance(step.pose, scene.obstacle_circles, step.arrays[1])
     if d_obs == math.inf:
         return 1.0
-    d_obs = max(d_obs, 1e-6)
+    d_obs = max(d_obs - radius, 1e-6)
     return math.exp(-epsilon * (1.0 / d_obs) ** 2)
 
 

@@ -44,10 +44,14 @@ from footsim.scene import Scene, circle_array
 from footsim.walk.footsteps import DoubleStep, FeetState, FootstepGeometry, Side, placed_double_step
 from footsim.walk.params import WalkParams
 
+# pymunk categories of the obstacles, which reach the upper body, and of the ball, which does not
+_TALL, _LOW = 0b10, 0b01
 
-def _box(body: pymunk.Body, length: float, width: float) -> pymunk.Poly:
+
+def _box(body: pymunk.Body, length: float, width: float, offset: float = 0.0) -> pymunk.Poly:
+    """A ``length`` x ``width`` rectangle on ``body``, its centre ``offset`` ahead of the body's origin."""
     hl, hw = 0.5 * length, 0.5 * width
-    return pymunk.Poly(body, [(-hl, -hw), (hl, -hw), (hl, hw), (-hl, hw)])
+    return pymunk.Poly(body, [(offset - hl, -hw), (offset + hl, -hw), (offset + hl, hw), (offset - hl, hw)])
 
 
 def box_hits_circles(x: float, y: float, theta: float, half_length: float, half_width: float, circles) -> bool:
@@ -86,7 +90,7 @@ class Pymunk2DBackend(Backend):
     #: a fall model.
     deferred_rng = True
 
-    COLLISION_MODELS = ("footprint", "nav_distance")
+    COLLISION_MODELS = ("footprint", "upper_body", "nav_distance")
 
     def __init__(
         self,
@@ -128,10 +132,18 @@ class Pymunk2DBackend(Backend):
         self.geometry = FootstepGeometry(robot.step_limits, robot.foot_length, robot.foot_width, walk.foot_distance)
         foot_half = (0.5 * robot.foot_length, 0.5 * robot.foot_width)
         trunk_half = tuple(0.5 * v for v in robot.torso_footprint)
-        # Broad phase: a shape centred farther than its circumradius (+ a rounding margin) from
-        # an obstacle can't touch it.
-        reach = max(math.hypot(*foot_half), math.hypot(*trunk_half)) * (1.0 + 1e-9) + 1e-9
-        self._dims = np.array([reach, *foot_half, *trunk_half], dtype=np.float64)  # collision.double_step_collides
+        #: the upper body's box the check adds against obstacles (length, width, offset ahead), or None
+        self.upper_body_box = self._upper_body_box(robot, collision_model)
+        upper = (0.0, 0.0, 0.0)
+        if self.upper_body_box is not None:
+            length, width, offset = self.upper_body_box
+            upper = (0.5 * length, 0.5 * width, offset)
+        # Broad phase: a shape whose reference pose is farther from an obstacle than the shape's
+        # farthest corner from that pose (+ a rounding margin) can't touch it.
+        reach = max(math.hypot(*foot_half), math.hypot(*trunk_half), math.hypot(abs(upper[2]) + upper[0], upper[1]))
+        reach = reach * (1.0 + 1e-9) + 1e-9
+        self._dims = np.array([reach, *foot_half, *trunk_half, *upper], dtype=np.float64)  # collision kernels
+        self._n_tall = 0  # the scene's obstacles: the first rows of its circles, the ball last
         self._space: pymunk.Space | None = None
         self._circles = circle_array(())  # the scene's (x, y, r), obstacles and ball
         self.feet: FeetState | None = None
@@ -141,6 +153,16 @@ class Pymunk2DBackend(Backend):
         self._noise_sigma = (0.0, 0.0, 0.0)
         self._duration = walk.double_step_duration
         self._rng = np.random.default_rng(0)
+
+    @staticmethod
+    def _upper_body_box(robot: RobotSpec, collision_model: str) -> tuple[float, float, float] | None:
+        """With ``upper_body``, the robot's box bounding torso, head and arms at walk-ready (length,
+        width, its centre's offset ahead of the feet's mean pose); else None."""
+        if collision_model != "upper_body":
+            return None
+        if robot.upper_body_footprint is None:
+            raise ValueError(f"backend.collision_model=upper_body: robot {robot.name!r} has no upper_body_footprint")
+        return robot.upper_body_footprint
 
     def apply_randomization(self, values: dict[str, float]) -> None:
         sx, sy, st = self._noise_sigma
@@ -165,6 +187,7 @@ class Pymunk2DBackend(Backend):
         self._rng = rng
         self._space = None
         self._circles = scene.circle_array
+        self._n_tall = len(scene.obstacles)
         self.feet = self.geometry.initial_feet()
         nav = self.feet.nav_pose
         self.history = [(Side.LEFT, self.feet.left), (Side.RIGHT, self.feet.right)]
@@ -173,21 +196,31 @@ class Pymunk2DBackend(Backend):
 
     @property
     def space(self) -> pymunk.Space | None:
-        """The episode's scene as a pymunk space (obstacles as static circles, the foot and trunk
-        footprints as kinematic polygons), built on first use: collisions are tested in closed
-        form (:func:`box_hits_circles`), this is for inspection and tests."""
+        """The episode's scene as a pymunk space (obstacles and ball as static circles, the foot, trunk
+        and, with ``upper_body``, upper-body footprints as kinematic polygons, the last filtered to
+        see the obstacles only), built on first use: collisions are tested in closed form
+        (:func:`box_hits_circles`), this is for inspection and tests."""
         if self._space is None and self.scene is not None:
             space = pymunk.Space()
-            for obstacle in self.scene.all_obstacles:
-                space.add(pymunk.Circle(space.static_body, obstacle.r, (obstacle.x, obstacle.y)))
-            probe_body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
-            foot_shape = _box(probe_body, self.robot.foot_length, self.robot.foot_width)
-            trunk_body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
-            trunk_shape = _box(trunk_body, *self.robot.torso_footprint)
+            for obstacle in self.scene.obstacles:
+                circle = pymunk.Circle(space.static_body, obstacle.r, (obstacle.x, obstacle.y))
+                circle.filter = pymunk.ShapeFilter(categories=_TALL)
+                space.add(circle)
+            if self.scene.ball is not None:
+                ball = self.scene.ball
+                circle = pymunk.Circle(space.static_body, ball.r, (ball.x, ball.y))
+                circle.filter = pymunk.ShapeFilter(categories=_LOW)
+                space.add(circle)
             robot_only = pymunk.ShapeFilter(group=1)  # the robot's own shapes never collide with each other
-            foot_shape.filter = robot_only
-            trunk_shape.filter = robot_only
-            space.add(probe_body, foot_shape, trunk_body, trunk_shape)
+            for length, width, offset, mask in (
+                (self.robot.foot_length, self.robot.foot_width, 0.0, pymunk.ShapeFilter.ALL_MASKS()),
+                (*self.robot.torso_footprint, 0.0, pymunk.ShapeFilter.ALL_MASKS()),
+                *([(*self.upper_body_box, _TALL)] if self.upper_body_box is not None else []),
+            ):
+                body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+                shape = _box(body, length, width, offset)
+                shape.filter = pymunk.ShapeFilter(group=robot_only.group, mask=mask)
+                space.add(body, shape)
             self._space = space
         return self._space
 
@@ -197,7 +230,7 @@ class Pymunk2DBackend(Backend):
             raise RuntimeError("backend pymunk: execute() before reset()")
         sigma = self._noise_sigma
         perturbed = sigma[0] or sigma[1] or sigma[2]
-        if not perturbed and self.execution_model is None and self.collision_model == "footprint":
+        if not perturbed and self.execution_model is None and self.collision_model != "nav_distance":
             # the common case in one compiled call: placement, collision test and navigation pose
             (first, second), (left, right) = double_step, before
             values = collision.execute_double_step(
@@ -216,6 +249,7 @@ class Pymunk2DBackend(Backend):
                 self.geometry.kernel_params,
                 self._circles,
                 self._dims,
+                self._n_tall,
             )
             after_first, after_second, executed, n_interfered = placed_double_step(left, values)
             fell = self.fall_model is not None and self._map_falls(double_step)
@@ -228,7 +262,7 @@ class Pymunk2DBackend(Backend):
         assert self.scene is not None  # reset() set it with the feet
         if not self.scene.circles:
             collided = False
-        elif self.collision_model == "footprint":
+        elif self.collision_model != "nav_distance":
             collided = self._double_step_collides(before, after_first, after_second)
         else:
             collided = self._nav_too_close(after_first.nav_pose) or self._nav_too_close(after_second.nav_pose)
@@ -307,7 +341,9 @@ class Pymunk2DBackend(Backend):
         """Each flying foot at mid-swing and at put-down, and the trunk at each put-down, in one
         compiled call (:func:`footsim.backends.pymunk2d.collision.double_step_collides`, broad phase included)."""
         (sx, sy, st), ((mx, my, mt), (rx, ry, rt)), (ex, ey, et) = before[1], after_first, after_second[0]
-        return collision.double_step_collides(self._circles, self._dims, sx, sy, st, rx, ry, rt, mx, my, mt, ex, ey, et)
+        return collision.double_step_collides(
+            self._circles, self._dims, self._n_tall, sx, sy, st, rx, ry, rt, mx, my, mt, ex, ey, et
+        )
 
     def _nav_too_close(self, nav: Pose2D) -> bool:
         """Thesis check: the navigation pose within ``collision_distance`` of a circle's edge."""

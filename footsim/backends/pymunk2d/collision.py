@@ -65,18 +65,22 @@ def _mean_heading(at, bt):
 
 
 @compiled
-def double_step_collides(circles, dims, sx, sy, st, rx, ry, rt, mx, my, mt, ex, ey, et):
+def double_step_collides(circles, dims, n_tall, sx, sy, st, rx, ry, rt, mx, my, mt, ex, ey, et):
     """Does a double step touch a circle?  The right foot flies from ``s`` to ``r`` while the left
     stands at ``m``, then the left foot flies from ``m`` to ``e``; ``dims`` = ``(reach, foot
-    half-length, foot half-width, trunk half-length, trunk half-width)``, ``reach`` the larger
-    circumradius (with a rounding margin).
+    half-length, foot half-width, trunk half-length, trunk half-width, upper-body half-length,
+    upper-body half-width, upper-body offset)``, ``reach`` the largest distance from a shape's
+    reference pose to its farthest corner (with a rounding margin).
 
     Each flying foot is tested at mid-swing and at put-down, and the trunk (the mean of the two
-    feet, :func:`footsim.geometry.mean_pose`) at each put-down.  Broad phase first: every one of
-    those six shapes is centred inside the bounding box of the four foot positions, so a circle
-    farther from that box than its radius plus ``reach`` can't touch any of them.
+    feet, :func:`footsim.geometry.mean_pose`) at each put-down.  With an upper-body half-length
+    > 0, the upper body's box (its centre ``offset`` ahead of the trunk) is tested at each put-down
+    too, against the first ``n_tall`` circles only (the obstacles: the ball stays below the arms).
+    Broad phase first: every shape's reference pose lies inside the bounding box of the four foot
+    positions, so a circle farther from that box than its radius plus ``reach`` can't touch any.
     """
     reach, foot_hl, foot_hw, trunk_hl, trunk_hw = dims[0], dims[1], dims[2], dims[3], dims[4]
+    upper_hl, upper_hw, upper_offset = dims[5], dims[6], dims[7]
     lo_x, hi_x = min(min(sx, rx), min(mx, ex)) - reach, max(max(sx, rx), max(mx, ex)) + reach
     lo_y, hi_y = min(min(sy, ry), min(my, ey)) - reach, max(max(sy, ry), max(my, ey)) + reach
     n = circles.shape[0]
@@ -104,11 +108,24 @@ def double_step_collides(circles, dims, sx, sy, st, rx, ry, rt, mx, my, mt, ex, 
             for b in shapes:
                 if _box_hits_circle(b[0], b[1], b[2], b[3], b[4], b[5], circles[i, 0], circles[i, 1], circles[i, 2]):
                     return True
+    if upper_hl > 0.0:
+        c2, s2, c4, s4 = shapes[2][2], shapes[2][3], shapes[5][2], shapes[5][3]
+        upper = (
+            (shapes[2][0] + upper_offset * c2, shapes[2][1] + upper_offset * s2, c2, s2),
+            (shapes[5][0] + upper_offset * c4, shapes[5][1] + upper_offset * s4, c4, s4),
+        )
+        for i in range(min(n_tall, n)):
+            if near[i]:
+                for b in upper:
+                    if _box_hits_circle(
+                        b[0], b[1], b[2], b[3], upper_hl, upper_hw, circles[i, 0], circles[i, 1], circles[i, 2]
+                    ):
+                        return True
     return False
 
 
 @compiled
-def execute_double_step(sx, sy, st, lx, ly, lt, x1, y1, t1, x2, y2, t2, g, circles, dims):
+def execute_double_step(sx, sy, st, lx, ly, lt, x1, y1, t1, x2, y2, t2, g, circles, dims, n_tall):
     """A whole 2D double step in one call: :func:`place_double_step` from the left foot at ``(lx,
     ly, lt)`` (the right foot standing at ``(sx, sy, st)``), :func:`double_step_collides` on the
     result, and the navigation pose after it (:func:`footsim.geometry.mean_pose` of the feet).
@@ -119,6 +136,6 @@ def execute_double_step(sx, sy, st, lx, ly, lt, x1, y1, t1, x2, y2, t2, g, circl
     placed = place_double_step(lx, ly, lt, x1, y1, t1, x2, y2, t2, g)
     rx, ry, rt, ex, ey, et = placed[0], placed[1], placed[2], placed[7], placed[8], placed[9]
     collided = circles.shape[0] > 0 and double_step_collides(
-        circles, dims, sx, sy, st, rx, ry, rt, lx, ly, lt, ex, ey, et
+        circles, dims, n_tall, sx, sy, st, rx, ry, rt, lx, ly, lt, ex, ey, et
     )
     return placed + (collided, 0.5 * (ex + rx), 0.5 * (ey + ry), _mean_heading(et, rt))
