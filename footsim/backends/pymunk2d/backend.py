@@ -211,7 +211,7 @@ class Pymunk2DBackend(Backend):
                 circle = pymunk.Circle(space.static_body, ball.r, (ball.x, ball.y))
                 circle.filter = pymunk.ShapeFilter(categories=_LOW)
                 space.add(circle)
-            robot_only = pymunk.ShapeFilter(group=1)  # the robot's own shapes never collide with each other
+            # the robot's shapes share a group (never collide with each other); the upper body's sees the obstacles only
             for length, width, offset, mask in (
                 (self.robot.foot_length, self.robot.foot_width, 0.0, pymunk.ShapeFilter.ALL_MASKS()),
                 (*self.robot.torso_footprint, 0.0, pymunk.ShapeFilter.ALL_MASKS()),
@@ -219,7 +219,7 @@ class Pymunk2DBackend(Backend):
             ):
                 body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
                 shape = _box(body, length, width, offset)
-                shape.filter = pymunk.ShapeFilter(group=robot_only.group, mask=mask)
+                shape.filter = pymunk.ShapeFilter(group=1, mask=mask)
                 space.add(body, shape)
             self._space = space
         return self._space
