@@ -136,6 +136,10 @@ class Backend(ABC):
     #: Names of randomization terms this backend supports (see ``footsim.randomization.TERMS``).
     #: Asking for anything else is an error (never a silent no-op).
     capabilities: frozenset[str] = frozenset()
+    #: The box over torso, head and arms (length, width, centre offset ahead of the navigation pose)
+    #: that the collision check tests besides the feet and trunk, or None (the 2D upper_body model
+    #: sets it; the footstep planner plans against it).
+    upper_body_box: tuple[float, float, float] | None = None
 
     @abstractmethod
     def reset(self, scene: Scene, rng: np.random.Generator) -> Pose2D:

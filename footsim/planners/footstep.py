@@ -629,8 +629,8 @@ class FootstepController:
         elif not isinstance(params, FootstepParams):
             params = FootstepParams.from_mapping(params)
         geometry = FootstepGeometry(env.limits, env.robot.foot_length, env.robot.foot_width, env.walk.foot_distance)
-        # plan against what the env's collision check tests (the 2D backend's upper_body_box, if any)
-        return cls(geometry, env.robot.torso_footprint, params, getattr(env.backend, "upper_body_box", None))
+        # plan against what the env's collision check tests
+        return cls(geometry, env.robot.torso_footprint, params, env.backend.upper_body_box)
 
     def _reset_state(self) -> None:
         self.last_left_step: Footstep | None = None

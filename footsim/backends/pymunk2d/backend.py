@@ -132,8 +132,7 @@ class Pymunk2DBackend(Backend):
         self.geometry = FootstepGeometry(robot.step_limits, robot.foot_length, robot.foot_width, walk.foot_distance)
         foot_half = (0.5 * robot.foot_length, 0.5 * robot.foot_width)
         trunk_half = tuple(0.5 * v for v in robot.torso_footprint)
-        #: the upper body's box the check adds against obstacles (length, width, offset ahead), or None
-        self.upper_body_box = self._upper_body_box(robot, collision_model)
+        self.upper_body_box = self._upper_body_box(robot, collision_model)  # the check adds it against obstacles
         upper = (0.0, 0.0, 0.0)
         if self.upper_body_box is not None:
             length, width, offset = self.upper_body_box
