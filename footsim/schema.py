@@ -174,6 +174,7 @@ class TaskConfig:
     path_hint_clearance: float = MISSING
     observe_history: int = MISSING
     start_in_place: int = MISSING
+    start_step_scale: float = MISSING
     success_bonus: Optional[float] = MISSING
     scenes: ScenesConfig = MISSING
 

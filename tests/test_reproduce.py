@@ -209,6 +209,15 @@ def test_footsim_reproduce_alone_checks_each_zoo_policy_on_the_standard_set(tmp_
     assert rp.scope(bare, None, None, everything=False) == (None, None)
 
 
+def test_jobs_default_to_the_usable_cores():
+    assert parse_args([])["jobs"] == len(os.sched_getaffinity(0))
+    assert parse_args(["jobs=3"])["jobs"] == 3
+    with pytest.raises(SystemExit, match="jobs must be > 0, got 0"):
+        parse_args(["jobs=0"])
+    with pytest.raises(SystemExit, match="jobs must be an integer, got 'many'"):
+        parse_args(["jobs=many"])
+
+
 def test_backend_settings_evaluate_the_study_at_other_physics(tmp_path):
     pytest.importorskip("mujoco")
     assert parse_args(["backends.mujoco.physics_dt=0.001"])["backends"] == {"mujoco": {"physics_dt": 0.001}}

@@ -221,10 +221,34 @@ def test_start_in_place_walks_in_place_first_then_executes_the_actions():
     assert started.task.steps == 3
 
 
+def test_start_step_scale_executes_the_scaled_action_first():
+    """With start_step_scale=0.4 the first start_in_place double step executes 0.4 times the
+    policy's action: the pose and the recorded previous action are those of an episode without the
+    option given 0.4 times the action; the next step executes the action itself."""
+    scene = Scene(goal=Pose2D(1.5, 0.4, 0.3))
+    action = np.array([0.6, -0.3, 0.4, 0.5, 0.2, -0.1], dtype=np.float32)
+    scaled = [0.4 * float(a) for a in action]
+    plain = FootstepEnv()
+    started = FootstepEnv(task=dict(fconf.load_preset("task", "nav"), start_in_place=1, start_step_scale=0.4))
+    for env in (plain, started):
+        env.reset(seed=5, options={"scene": scene})
+    plain.step(np.array(scaled, dtype=np.float32))
+    started.step(action)
+    # the plain env takes the scaled action as float32: equal to 1e-6
+    assert tuple(started.task.pose) == pytest.approx(tuple(plain.task.pose), abs=1e-6)
+    assert started.task.previous_actions[0] == pytest.approx(scaled, abs=1e-6)
+    plain.step(action)
+    started.step(action)
+    assert tuple(started.task.pose) == pytest.approx(tuple(plain.task.pose), abs=1e-6)
+
+
 def test_bad_start_in_place_values_are_named():
     for value in (-1, 1.5, True, 100):
         with pytest.raises(ValueError, match="task.start_in_place"):
             NavTaskConfig(start_in_place=value)
+    for scale in (-0.1, 1.5, float("nan")):
+        with pytest.raises(ValueError, match=r"task.start_step_scale must be in \[0, 1\]"):
+            NavTaskConfig(start_step_scale=scale)
     with pytest.raises(ValueError, match=r"task.start_in_place must be an integer in \[0, task.max_steps\), got 5"):
         NavTaskConfig(start_in_place=5, max_steps=5)  # the whole episode in place
 

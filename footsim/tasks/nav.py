@@ -87,6 +87,10 @@ class NavTaskConfig:
     #: robot starts from standing into a steady walk before it takes the policy's steps (a 3D step
     #: from standing falls on more of the action box than one from a steady walk: docs/capability/)
     start_in_place: int = 0
+    #: those first double steps execute the policy's action times this instead of in place (0): a
+    #: start into the box the walk check requires from standing (0.4 of the step limits) can still
+    #: step away from an obstacle the walk's sway in place would touch
+    start_step_scale: float = 0.0
     #: reward per remaining step on success; None: the maximum step reward, the sum of the reward
     #: weights (the thesis's 1): with a term added beside the thesis's five, a smaller bonus would
     #: make waiting pay more than arriving
@@ -116,6 +120,8 @@ class NavTaskConfig:
         check_count("task.n_rays", self.n_rays, least=1)
         check_count("task.observe_history", self.observe_history)
         check_count("task.start_in_place", self.start_in_place, below=("task.max_steps", int(self.max_steps)))
+        if not 0.0 <= self.start_step_scale <= 1.0:
+            raise ValueError(f"task.start_step_scale must be in [0, 1], got {self.start_step_scale!r}")
         if not 0.0 < self.fall_threshold < math.pi / 2:
             raise ValueError(f"task.fall_threshold must be in (0, pi/2) rad, got {self.fall_threshold!r}")
         if not (self.collision_ends_episode is None or isinstance(self.collision_ends_episode, bool)):
@@ -568,9 +574,14 @@ class NavTask:
         step.scene, step.arrays = scene, self._arrays
 
     def command(self, action: list[float]) -> list[float]:
-        """The action the robot executes for the policy's ``action``: in place for the episode's
-        first ``start_in_place`` double steps, else ``action`` itself."""
-        return _ZERO_ACTION if self.steps < self.config.start_in_place else action
+        """The action the robot executes for the policy's ``action``: for the episode's first
+        ``start_in_place`` double steps ``action`` times ``start_step_scale`` (in place at 0), else
+        ``action`` itself."""
+        config = self.config
+        if self.steps >= config.start_in_place:
+            return action
+        scale = config.start_step_scale
+        return [a * scale for a in action] if scale else _ZERO_ACTION
 
     def step(self, result: Any, action: list[float]) -> tuple[float, dict[str, float], bool, bool]:
         """``(reward, reward terms, terminated, truncated)`` of one executed double step.

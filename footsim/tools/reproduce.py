@@ -8,7 +8,8 @@ Keys: ``plan`` (default conf/study/v1.yaml), ``zoo`` (default $FOOTSIM_ZOO or fo
 (every condition on every set; false: with neither ``only`` nor ``sets`` given, the plan's
 ``reproduce:`` scope, in v1 each zoo policy under its own condition on the standard set; the data
 files keep the other evaluations' values),
-``n_scenes`` (at most this many scenes per set), ``jobs`` (worker processes, default 1),
+``n_scenes`` (at most this many scenes per set), ``jobs`` (worker processes; default ``auto``, one per
+CPU core this process may use),
 ``shard_size`` (scenes per 3D task, default 50; a 2D task takes five times as many), ``baselines``
 (true), ``plots`` (true), ``progress`` (true), ``strict`` (exit 1 when a cell changed; false),
 ``backends.B.KEY=V`` (evaluate every job on backend B with setting KEY of conf/backend/B.yaml at V,
@@ -20,6 +21,7 @@ Training: ``train=true [launcher=L | +launcher=L] [runs_dir=DIR] [dry_run=true] 
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -37,7 +39,7 @@ DEFAULTS: dict[str, str | None] = {
     "sets": None,
     "all": "false",
     "n_scenes": None,
-    "jobs": "1",
+    "jobs": "auto",
     "shard_size": "50",
     "baselines": "true",
     "plots": "true",
@@ -79,6 +81,8 @@ def parse_args(argv: list[str]) -> dict:
         if value not in ("true", "false"):
             raise SystemExit(f"footsim-reproduce: {key} must be true or false, got {args[key]!r}")
         args[key] = value == "true"
+    if args["jobs"] == "auto":
+        args["jobs"] = str(len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
     for key in INTS:
         if args[key] is None:
             continue
