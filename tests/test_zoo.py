@@ -142,6 +142,24 @@ def test_round_trip_add_list_show_eval_and_init_from(tiny_zoo, tmp_path, capsys)
     with pytest.raises(SystemExit, match=r"parent_name is only for a run trained from the entry it replaces"):
         zoo_main(["add", str(child), "name=other", "parent_name=x", "check_scenes=2", f"zoo={replaced}"])
 
+    # a staged training: a run initialised from another run that is not in the zoo counts that run's
+    # steps and its lineage's, back to the zoo entry it started from: 128 (tiny) + 128 (child) + 128
+    staged = tmp_path / "zoo_staged"
+    shutil.copytree(root, staged)
+    zoo_main(["remove", "tiny-child", f"zoo={staged}"])
+    grandchild = tmp_path / "grandchild"
+    _cli(
+        "footsim-train",
+        *tiny_training(128, "eval.after_train=false"),
+        f"init_from={child}",
+        f"hydra.run.dir={grandchild}",
+        env=env,
+    )
+    zoo_main(["add", str(grandchild), "name=tiny-grandchild", "check_scenes=2", f"zoo={staged}"])
+    staged_prov = zoo.provenance("tiny-grandchild", staged)
+    assert staged_prov["parent"]["zoo"] is None and staged_prov["parent"]["run"] == str(child.resolve())
+    assert (staged_prov["steps"], staged_prov["parent"]["steps"], staged_prov["steps_total"]) == (128, 128, 384)
+
 
 @pytest.mark.slow
 @pytest.mark.xdist_group("tiny_runs")

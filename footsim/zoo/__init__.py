@@ -409,6 +409,29 @@ def _parent_name(parent_path: str | None, root: Path, digest: str | None = None)
     return None
 
 
+def _lineage_steps(parent: dict | None, parent_zoo: str | None, root: Path) -> int:
+    """Training steps of the lineage a run was initialised from (its ``parent.json`` record): a zoo
+    parent's recorded total, or a parent run's own steps plus its lineage's, followed through the
+    runs' ``parent.json`` files (a staged training: each stage starts counting at 0)."""
+    steps, seen = 0, set()
+    while parent:
+        own = int(parent.get("parent_num_timesteps", 0))
+        if parent_zoo is not None:
+            entry = load_index(root)["entries"].get(parent_zoo[len(PREFIX) :], {})
+            return steps + int(entry.get("steps_total") or own)
+        steps += own
+        run = Path(parent.get("init_from") or "").resolve()
+        record = run / "parent.json"
+        if not parent.get("init_from") or run in seen or not record.is_file():
+            return steps
+        seen.add(run)
+        parent = json.loads(record.read_text())
+        model = Path(parent["init_from"]) / "model.zip" if parent.get("init_from") else None
+        digest = weights_digest(model) if model is not None and model.is_file() else None
+        parent_zoo = _parent_name(parent.get("init_from"), root, digest)
+    return steps
+
+
 def entry_weights_digest(name: str, root: Path | None = None) -> str:
     """The entry's :func:`weights_digest`, as its provenance records it (computed when it does not)."""
     prov = provenance(name, root)
@@ -486,13 +509,10 @@ def add(
         if curve is not None:
             atomic_write_text(tmp / CURVE_FILE, curve)
         train_info = json.loads((run / "train_info.json").read_text()) if (run / "train_info.json").is_file() else {}
-        # a run initialised from another starts counting at 0: its own steps; the total adds the
-        # parent's (its whole lineage's when the parent is a zoo entry)
+        # a run initialised from another starts counting at 0: its own steps; the total adds its
+        # whole lineage's
         parent_steps = int(parent.get("parent_num_timesteps", 0)) if parent else 0
-        if parent_zoo is not None:
-            parent_steps = int(
-                load_index(root)["entries"][parent_zoo[len(PREFIX) :]].get("steps_total") or parent_steps
-            )
+        lineage_steps = _lineage_steps(parent, parent_zoo, root)
         prov = {
             "name": name,
             "condition": condition,
@@ -508,7 +528,7 @@ def add(
             "obs_size": model["obs_size"],
             "weights_sha256": weights_digest(tmp / MODEL_FILE),
             "steps": model["num_timesteps"],
-            "steps_total": model["num_timesteps"] + parent_steps,
+            "steps_total": model["num_timesteps"] + lineage_steps,
             "wall_time_s": train_info.get("wall_time_s"),
             "parent": None
             if parent is None
