@@ -42,7 +42,7 @@ def test_study_plan_v1_training_commands_compose_to_its_conditions():
     study = ("2d_nav", "2d_obst", "2d_nav_noise", "2d_obst_beta", "2d_obst_beta_10m_odometry")
     study += ("2d_obst_beta_tuned", "2d_obst_beta_7m", "2d_obst_beta_10m", "2d_obst_beta_10m_noise")
     study += ("mj_nav", "mj_nav_long", "mj_nav_noise", "mj_obst_beta", "mj_obst_beta_long")
-    study += ("mj_obst_beta_noise", "mj_nav_300k", "mj_obst_beta_400k", "mj_nav_scratch")
+    study += ("mj_nav_300k", "mj_obst_beta_400k", "mj_nav_scratch")
     study += ("mj_obst_beta_tilt", "mj_obst_beta_contact")
     study += ("mj_nav_start", "mj_obst_beta_start", "mj_obst_beta_start_noise")
     for name in study:  # the study's conditions
