@@ -409,6 +409,18 @@ def _parent_name(parent_path: str | None, root: Path, digest: str | None = None)
     return None
 
 
+def _parent_identity(parent: dict | None, root: Path) -> tuple[str | None, str | None]:
+    """The weights digest of the parent a run's ``parent.json`` record names, and ``zoo:NAME`` of the
+    entry holding those weights (None for either when there is none).  The digest is of the parent's
+    weights as they are now: a run directory trained over since gives another digest, and the
+    lineage check (footsim-reproduce) then names the mismatch."""
+    if not parent or not parent.get("init_from"):
+        return None, None
+    model = Path(parent["init_from"]) / "model.zip"
+    digest = weights_digest(model) if model.is_file() else None
+    return digest, _parent_name(parent["init_from"], root, digest)
+
+
 def _lineage_steps(parent: dict | None, parent_zoo: str | None, root: Path) -> int:
     """Training steps of the lineage a run was initialised from (its ``parent.json`` record): a zoo
     parent's recorded total, or a parent run's own steps plus its lineage's, followed through the
@@ -420,15 +432,14 @@ def _lineage_steps(parent: dict | None, parent_zoo: str | None, root: Path) -> i
             entry = load_index(root)["entries"].get(parent_zoo[len(PREFIX) :], {})
             return steps + int(entry.get("steps_total") or own)
         steps += own
-        run = Path(parent.get("init_from") or "").resolve()
-        record = run / "parent.json"
-        if not parent.get("init_from") or run in seen or not record.is_file():
-            return steps
+        if not parent.get("init_from"):
+            break
+        run = Path(parent["init_from"]).resolve()
+        if run in seen or not (run / "parent.json").is_file():
+            break
         seen.add(run)
-        parent = json.loads(record.read_text())
-        model = Path(parent["init_from"]) / "model.zip" if parent.get("init_from") else None
-        digest = weights_digest(model) if model is not None and model.is_file() else None
-        parent_zoo = _parent_name(parent.get("init_from"), root, digest)
+        parent = json.loads((run / "parent.json").read_text())
+        parent_zoo = _parent_identity(parent, root)[1]
     return steps
 
 
@@ -481,11 +492,7 @@ def add(
     tmp = Path(tempfile.mkdtemp(dir=root, prefix=f".{name}.adding-"))
     try:
         parent = json.loads((run / "parent.json").read_text()) if (run / "parent.json").is_file() else None
-        parent_model = Path(parent["init_from"]) / "model.zip" if parent and parent.get("init_from") else None
-        # the parent's weights as they are now: a run directory trained over since would give another
-        # digest, and the lineage check (footsim-reproduce) then names the mismatch
-        parent_digest = weights_digest(parent_model) if parent_model is not None and parent_model.is_file() else None
-        parent_zoo = _parent_name(parent.get("init_from"), root, parent_digest) if parent else None
+        parent_digest, parent_zoo = _parent_identity(parent, root)
         if parent_zoo == PREFIX + name:
             if parent_name is None:
                 raise ZooError(
