@@ -7,6 +7,7 @@ import pathlib
 import numpy as np
 import pytest
 from omegaconf import OmegaConf
+from shared_facts import facts_text
 
 from footsim.walk import DoubleStep, Footstep, FootstepGeometry, LegGeometry, QuinticWalk, Side, StepLimits, WalkParams
 from footsim.walk.ik import leg_fk, rpy_from_rotation
@@ -21,7 +22,6 @@ HALF, DOUBLE_SUPPORT, SINGLE_SUPPORT = 0.5, 0.1, 0.4
 LEFT, RIGHT, TRUNK = 0, 1, 2  # rows of WalkTrajectory.local_poses
 X, Y, Z, PITCH, YAW = 0, 1, 2, 4, 5
 REPO = pathlib.Path(__file__).parents[1]
-FACTS = REPO.parent / "shared" / "FACTS.md"
 
 
 def params(**overrides) -> WalkParams:
@@ -266,9 +266,7 @@ def facts_parameter_table(text: str) -> dict[str, dict[str, str]]:
 
 @pytest.fixture(scope="module")
 def facts_table():
-    if not FACTS.is_file():
-        pytest.skip(f"{FACTS} is absent (the shared facts file sits beside the repository)")
-    return facts_parameter_table(FACTS.read_text())
+    return facts_parameter_table(facts_text())
 
 
 def preset(name: str) -> dict:

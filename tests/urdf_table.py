@@ -7,11 +7,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
-
-FACTS = Path(__file__).resolve().parents[1].parent / "shared" / "FACTS.md"
+from shared_facts import facts_text
 
 
 @dataclass(frozen=True)
@@ -45,7 +43,7 @@ def _floats(cell: str) -> list[float]:
 def links() -> dict[str, tuple[float, np.ndarray, np.ndarray]]:
     """link -> (mass, COM, 3x3 inertia about the COM)."""
     out = {}
-    for row in _section(FACTS.read_text(), "URDF: links (mass, COM, inertia about the COM, link frame)")[1:]:
+    for row in _section(facts_text(), "URDF: links (mass, COM, inertia about the COM, link frame)")[1:]:
         name, mass, com, ixx, ixy, ixz, iyy, iyz, izz = row[:9]
         i = [float(v) for v in (ixx, ixy, ixz, iyy, iyz, izz)]
         inertia = np.array([[i[0], i[1], i[2]], [i[1], i[3], i[4]], [i[2], i[4], i[5]]])
@@ -55,7 +53,7 @@ def links() -> dict[str, tuple[float, np.ndarray, np.ndarray]]:
 
 def joints() -> dict[str, TableJoint]:
     out = {}
-    for row in _section(FACTS.read_text(), "URDF: joints"):
+    for row in _section(facts_text(), "URDF: joints"):
         if len(row) >= 10 and row[1] == "revolute":
             parent, child = (s.strip() for s in row[2].split("->"))
             rpy = tuple(_floats(row[4]))
